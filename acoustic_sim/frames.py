@@ -1,0 +1,139 @@
+"""Coordinate frames and the sample clock, written down once.
+
+World frame: MuJoCo's, z up. Head frame: x forward (nose), y toward the left ear, z up.
+Azimuth is measured counter-clockwise from +x toward +y (left is positive), elevation up
+from the horizontal plane (the SOFA convention). Degrees at every API boundary and in
+files; unit vectors inside the math, so that nothing wraps around.
+
+The sample counter is the master clock: ear frame ``k`` ends at sample
+``round(k * SAMPLE_RATE / FRAME_RATE)``, so control blocks are 705 or 706 samples long and
+never drift.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from acoustic_sim.errors import ConfigError
+
+SAMPLE_RATE = 44100
+"""Project sample rate in Hz; every other rate is resampled on load."""
+
+FRAME_RATE = 62.5
+"""Ear frame (and control step) rate in Hz: the ear unit's 16 ms spectrum cycle."""
+
+SPEED_OF_SOUND = 343.0
+"""Speed of sound in m/s (dry air at 20 deg C)."""
+
+P_REF = 20e-6
+"""Reference sound pressure for dB SPL, in pascal."""
+
+
+def sph_to_vec(azimuth_deg, elevation_deg) -> np.ndarray:
+    """Unit vectors from azimuth and elevation in degrees.
+
+    Parameters
+    ----------
+    azimuth_deg, elevation_deg : array_like
+        Azimuth (deg, counter-clockwise from +x, left positive) and elevation
+        (deg, -90..90, up positive); broadcast against each other.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3)
+        Unit vectors (x forward, y left, z up).
+    """
+    az = np.deg2rad(np.asarray(azimuth_deg, dtype=float))
+    el = np.deg2rad(np.asarray(elevation_deg, dtype=float))
+    az, el = np.broadcast_arrays(az, el)
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1)
+
+
+def vec_to_sph(vectors) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuth in (-180, 180] and elevation in [-90, 90], degrees, of vectors (..., 3).
+
+    Vectors need not be unit length; a zero vector is an error (it has no direction).
+    """
+    v = np.asarray(vectors, dtype=float)
+    if v.shape[-1] != 3:
+        raise ConfigError(f"direction vectors must have shape (..., 3), got {v.shape}")
+    norm = np.linalg.norm(v, axis=-1)
+    if np.any(norm == 0) or not np.all(np.isfinite(norm)):
+        raise ConfigError("a direction vector is zero or not finite: it has no direction")
+    az = np.rad2deg(np.arctan2(v[..., 1], v[..., 0]))
+    el = np.rad2deg(np.arcsin(np.clip(v[..., 2] / norm, -1.0, 1.0)))
+    # arctan2 gives -180 for (-1, -0.0); fold it to +180 so the range is (-180, 180].
+    az = np.where(az <= -180.0, az + 360.0, az)
+    return az, el
+
+
+def angle_between_deg(a, b) -> np.ndarray:
+    """Angle in degrees between direction vectors ``a`` and ``b`` (broadcast, (..., 3)).
+
+    Uses atan2(|a x b|, a . b), which stays accurate for small and near-180 deg angles.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.sum(a * b, axis=-1)
+    return np.rad2deg(np.arctan2(cross, dot))
+
+
+def rotation_zyx(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float = 0.0) -> np.ndarray:
+    """Rotation matrix (3, 3) of a frame turned by yaw (about z, left positive), then pitch
+    (about the new y; positive pitches the nose *down*, the right-hand rule about +y), then
+    roll (about the new x).
+
+    The matrix maps head-frame coordinates to world coordinates: ``v_world = R @ v_head``.
+    """
+    y, p, r = np.deg2rad([yaw_deg, pitch_deg, roll_deg])
+    cz, sz, cy, sy, cx, sx = np.cos(y), np.sin(y), np.cos(p), np.sin(p), np.cos(r), np.sin(r)
+    rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
+    return rz @ ry @ rx
+
+
+def world_to_head(points_world, head_position, head_rotation) -> np.ndarray:
+    """Express world points (..., 3) in the head frame given the head pose.
+
+    ``head_rotation`` maps head to world (as from :func:`rotation_zyx`), so the inverse is
+    its transpose.
+    """
+    p = np.asarray(points_world, dtype=float) - np.asarray(head_position, dtype=float)
+    return p @ np.asarray(head_rotation, dtype=float)
+
+
+def frame_end_sample(k, sample_rate: int = SAMPLE_RATE, frame_rate: float = FRAME_RATE):
+    """Sample index at which ear frame ``k`` ends (exclusive): ``round(k * fs / frame_rate)``.
+
+    Integer arithmetic (fs * 2 / 125 for 62.5 Hz) is used where the ratio allows, so the
+    clock is exact over any number of frames; ties round half to even like ``round``.
+    """
+    k = np.asarray(k, dtype=np.int64)
+    # frame_rate 62.5 = 125/2: compute fs*k*2/125 with integers to avoid float drift.
+    num, den = (2 * sample_rate, 125) if frame_rate == 62.5 else (None, None)
+    if num is None:
+        return np.rint(k * (sample_rate / frame_rate)).astype(np.int64)
+    q, rem = np.divmod(k * num, den)
+    twice = 2 * rem
+    up = (twice > den) | ((twice == den) & (q % 2 == 1))
+    out = q + up
+    return out if out.ndim else int(out)
+
+
+def block_length(k, sample_rate: int = SAMPLE_RATE, frame_rate: float = FRAME_RATE) -> int:
+    """Number of samples in control block ``k`` (from the end of frame k-1 to the end of frame k)."""
+    return int(frame_end_sample(k, sample_rate, frame_rate) - frame_end_sample(k - 1, sample_rate, frame_rate))
+
+
+def db_spl_to_pa(level_db: float) -> float:
+    """RMS sound pressure in pascal of a level in dB SPL re 20 uPa."""
+    return P_REF * 10.0 ** (np.asarray(level_db, dtype=float) / 20.0)
+
+
+def pa_to_db_spl(pressure_rms) -> np.ndarray:
+    """Level in dB SPL of an RMS pressure in pascal (silence gives -inf, never NaN)."""
+    p = np.asarray(pressure_rms, dtype=float)
+    with np.errstate(divide="ignore"):
+        return 20.0 * np.log10(p / P_REF)
