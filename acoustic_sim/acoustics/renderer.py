@@ -37,6 +37,11 @@ FRACTIONAL_PHASES = 8
 """Fractional-delay resolution of image placement (delay error <= 1/16 sample)."""
 
 
+def crossfade_ramp(n: int) -> np.ndarray:
+    """Weight (n,) of the new response over a block: a raised cosine from 0 to 1."""
+    return 0.5 - 0.5 * np.cos(np.pi * (np.arange(n) + 1) / n)
+
+
 class EgoNoise(Protocol):
     """The robot's own noise at the ears (motors, gears): the world drives it later.
 
@@ -254,7 +259,7 @@ class BinauralRenderer:
             old = cached if cached is not None else sfft.rfft(src.applied, n=nfft, axis=-1)
             new = sfft.rfft(h_new, n=nfft, axis=-1)
             both = sfft.irfft(xs * np.stack([old, new]), n=nfft, axis=-1)[..., -n:]
-            ramp = 0.5 - 0.5 * np.cos(np.pi * (np.arange(n) + 1) / n)
+            ramp = crossfade_ramp(n)
             y = both[0] * (1.0 - ramp) + both[1] * ramp
         else:
             new = cached if cached is not None else sfft.rfft(h_new, n=nfft, axis=-1)

@@ -1,0 +1,160 @@
+"""The streaming renderer: physics of the direct path, rooms, smoothness, determinism."""
+
+import numpy as np
+import pyroomacoustics as pra
+import pytest
+
+from acoustic_sim.acoustics import renderer as renderer_module
+from acoustic_sim.acoustics.microphone import Microphone
+from acoustic_sim.acoustics.reference import PRA_OFFSET, PraBinaural
+from acoustic_sim.acoustics.renderer import BinauralRenderer
+from acoustic_sim.acoustics.room import room_preset
+from acoustic_sim.errors import ConfigError, RoomError
+from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, frame_end_sample, rotation_zyx, sph_to_vec
+
+ANECHOIC = room_preset("anechoic")
+
+
+def free_field_ir(hrtf, azimuth=0.0, elevation=0.0, distance=1.0):
+    r = BinauralRenderer(hrtf, ANECHOIC, rng=np.random.default_rng(0), background=False)
+    r.set_head_pose([0, 0, 0], np.eye(3))
+    return r.impulse_response(sph_to_vec(azimuth, elevation) * distance, seconds=0.06)
+
+
+def test_free_field_minus_6_db_per_doubling(kemar):
+    levels = [10 * np.log10(np.sum(free_field_ir(kemar, 30, 10, d) ** 2)) for d in (0.5, 1.0, 2.0, 4.0)]
+    steps = np.diff(levels)
+    assert np.all(np.abs(steps + 6.0206) < 0.3), steps  # tolerance 0.3 dB
+
+
+@pytest.mark.parametrize("distance", [0.7, 1.5, 3.1])
+def test_free_field_propagation_delay(kemar, distance):
+    """The HRIR arrives delayed by exactly the distance over the speed of sound."""
+    ir = free_field_ir(kemar, 0.0, 0.0, distance)
+    hrir = kemar.hrir[kemar.nearest_index(sph_to_vec(0.0, 0.0)[None])[0]]
+    # Fractional lag by cross-correlation with parabolic interpolation of the peak.
+    xc = np.correlate(ir[0], hrir[0], mode="full")
+    k = int(np.argmax(xc))
+    lag = k - (hrir.shape[1] - 1) + 0.5 * (xc[k - 1] - xc[k + 1]) / (xc[k - 1] - 2 * xc[k] + xc[k + 1])
+    expected = distance / SPEED_OF_SOUND * SAMPLE_RATE - kemar.onset_samples
+    assert abs(lag - expected) < 0.25  # samples
+
+
+def test_left_source_is_louder_in_left_ear(kemar):
+    ir = free_field_ir(kemar, 90.0, 0.0, 1.5)
+    assert 10 * np.log10(np.sum(ir[0] ** 2) / np.sum(ir[1] ** 2)) > 6.0
+    ir = free_field_ir(kemar, -90.0, 0.0, 1.5)
+    assert 10 * np.log10(np.sum(ir[1] ** 2) / np.sum(ir[0] ** 2)) > 6.0
+
+
+@pytest.mark.parametrize("name", ["lab", "conference"])
+def test_room_rt60_within_10_percent(kemar, name):
+    room = room_preset(name)
+    r = BinauralRenderer(kemar, room, rng=np.random.default_rng(0), background=False)
+    head = np.asarray(room.listener)
+    r.set_head_pose(head, np.eye(3))
+    ir = r.impulse_response(head + [1.5, 0.3, 0.0])
+    for ear in ir:
+        rt = pra.experimental.measure_rt60(ear, fs=SAMPLE_RATE, decay_db=30)
+        assert abs(rt - room.target_rt60_s) <= 0.1 * room.target_rt60_s, (name, rt)
+
+
+@pytest.mark.parametrize("name, offset", [("lab", (1.2, 0.7, 0.3)), ("car_cabin", (0.6, -0.4, 0.1))])
+def test_first_30_ms_match_pyroomacoustics(kemar, name, offset):
+    """Fixed head, same SOFA, room and order: our early response equals pyroomacoustics'
+    (the cabin's walls are frequency dependent, the lab's are not)."""
+    room = room_preset(name, ism_order=3)
+    head = np.asarray(room.listener)
+    src = head + np.array(offset)
+    ours = BinauralRenderer(kemar, room, rng=np.random.default_rng(0), background=False, late=False)
+    ours.set_head_pose(head, rotation_zyx(20.0))
+    mine = ours.impulse_response(src, seconds=0.08)
+    theirs = PraBinaural(kemar.source, room).brir(src, head, head_yaw_deg=20.0)
+    # pyroomacoustics' response is later by its fixed offset plus the HRIR's onset, which
+    # we remove; its scale differs by the HRTF normalization. Align by that offset.
+    offset = PRA_OFFSET + int(round(kemar.onset_samples))
+    n = int(0.030 * SAMPLE_RATE)
+    for e in range(2):
+        a = mine[e, :n]
+        lags = range(offset - 2, offset + 3)
+        ncc = max(np.dot(a, theirs[e, k : k + n]) / np.linalg.norm(a) / np.linalg.norm(theirs[e, k : k + n]) for k in lags)
+        assert ncc >= 0.95, (e, ncc)
+
+
+def test_head_rotation_is_click_free(kemar, monkeypatch):
+    """A 1 kHz tone under a 180 deg/s head turn stays a tone: no broadband clicks."""
+
+    def hf_ratio_db():
+        r = BinauralRenderer(kemar, ANECHOIC, rng=np.random.default_rng(0), background=False)
+        t = np.arange(SAMPLE_RATE) / SAMPLE_RATE
+        r.add_source("tone", np.sin(2 * np.pi * 1000 * t) * np.sqrt(2), sph_to_vec(0, 0) * 1.5, level_db=80, start=0)
+        out = []
+        for k in range(62):
+            r.set_head_pose([0, 0, 0], rotation_zyx(180.0 * k / 62.5 - 90.0))
+            out.append(r.render_block())
+        y = np.concatenate(out, axis=1)[:, 2000:]
+        spec = np.abs(np.fft.rfft(y * np.hanning(y.shape[1]), axis=1)) ** 2
+        f = np.fft.rfftfreq(y.shape[1], 1 / SAMPLE_RATE)
+        return 10 * np.log10(spec[:, f > 4000].sum() / spec.sum())
+
+    smooth = hf_ratio_db()
+    assert smooth < -60.0, smooth  # dB of the energy above 4 kHz
+    # The check can fail: switching responses abruptly (no cross-fade) produces clicks.
+    monkeypatch.setattr(renderer_module, "crossfade_ramp", lambda n: np.ones(n))
+    assert hf_ratio_db() > smooth + 15.0
+
+
+def test_same_seed_same_output(kemar):
+    def run(seed):
+        room = room_preset("car_cabin")
+        rng = np.random.default_rng(seed)
+        r = BinauralRenderer(kemar, room, rng=rng)
+        head = np.asarray(room.listener)
+        r.add_source("noise", rng.standard_normal(8000), head + [0.8, 0.0, 0.05], level_db=70, start=0)
+        mic = Microphone(rng=rng)
+        blocks = []
+        for k in range(10):
+            r.set_head_pose(head, rotation_zyx(3.0 * k))
+            blocks.append(mic(r.render_block()))
+        return np.concatenate(blocks, axis=1)
+
+    a, b, c = run(7), run(7), run(8)
+    assert a.dtype == np.float32 and np.array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_blocks_follow_the_sample_clock(kemar):
+    r = BinauralRenderer(kemar, ANECHOIC, rng=np.random.default_rng(0), background=False)
+    lengths = [r.render_block().shape[1] for _ in range(200)]
+    assert set(lengths) == {705, 706}
+    assert r.sample == frame_end_sample(200) and r.frame == 200
+
+
+def test_moving_source_matches_fresh_images(kemar):
+    """Moving a source uses the shoebox's mirror symmetry; it must equal a fresh ISM."""
+    room = room_preset("lab")
+    head = np.asarray(room.listener)
+    moved = BinauralRenderer(kemar, room, rng=np.random.default_rng(0), background=False, late=False)
+    moved.set_head_pose(head, np.eye(3))
+    src = moved.add_source("s", np.ones(1), head + [1.0, 0.0, 0.0], level_db=94)
+    moved.move_source("s", head + [0.3, -1.1, 0.4])
+    fresh = BinauralRenderer(kemar, room, rng=np.random.default_rng(0), background=False, late=False)
+    fresh.set_head_pose(head, np.eye(3))
+    other = fresh.add_source("s", np.ones(1), head + [0.3, -1.1, 0.4], level_db=94)
+    np.testing.assert_allclose(moved.early_response(src)[0], fresh.early_response(other)[0], atol=1e-6)
+
+
+def test_errors(kemar):
+    room = room_preset("car_cabin")
+    r = BinauralRenderer(kemar, room, rng=np.random.default_rng(0))
+    with pytest.raises(RoomError, match="not inside room"):
+        r.add_source("out", np.ones(10), [5.0, 0.5, 0.5], level_db=70)
+    with pytest.raises(ConfigError, match="non-empty finite"):
+        r.add_source("nan", np.array([np.nan]), room.listener, level_db=70)
+    with pytest.raises(ConfigError, match="rotation matrix"):
+        r.set_head_pose(room.listener, np.ones((3, 3)))
+    with pytest.raises(ConfigError, match="no source named"):
+        r.move_source("ghost", room.listener)
+    r.add_source("near", np.ones(10), np.asarray(room.listener) + [0.05, 0, 0], level_db=70)
+    with pytest.raises(ConfigError, match="inside the head"):
+        r.render_block()
