@@ -132,7 +132,7 @@ class Room:
             raise RoomError(f"{what} must be 3 finite coordinates in metres, got {position}")
         if not self.anechoic and (np.any(p < margin) or np.any(p > np.asarray(self.dimensions) - margin)):
             raise RoomError(
-                f"{what} {tuple(np.round(p, 3))} is not inside room {self.name!r} of size {self.dimensions} m "
+                f"{what} {tuple(round(float(v), 3) for v in p)} is not inside room {self.name!r} of size {self.dimensions} m "
                 f"(at least {margin} m from every wall)"
             )
         return p
