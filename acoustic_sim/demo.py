@@ -58,9 +58,11 @@ def run_demo(*, out: Path, seed: int = 0, seconds: float = 4.0) -> str:
     lengths = np.array([b.shape[1] for b in blocks])
     pa = audio.astype(float) * FULL_SCALE_PA
     level = pa_to_db_spl(np.sqrt(np.mean(pa**2, axis=1)))
-    ild = _ild_per_frame(pa, lengths)
+    ild, loud = _ild_per_frame(pa, lengths)
     yaws = np.array(yaws)
-    corr = float(np.corrcoef(-yaws, ild)[0, 1])  # head left -> source to the right -> right ear louder
+    # Head turned left -> the alarm is to the right -> the right ear is louder (ILD < 0).
+    corr = float(np.corrcoef(-yaws[loud], ild[loud])[0, 1])
+    ild = np.where(loud, ild, np.nan)
     _figure(pa, ild, yaws, out / "demo.png")
     return "\n".join([
         "acoustic-sim demo: reverse alarm on the dashboard, car cabin, head sweeping +-60 deg",
@@ -69,16 +71,19 @@ def run_demo(*, out: Path, seed: int = 0, seconds: float = 4.0) -> str:
         f"  rendered {seconds:.1f} s in {n_frames} blocks of {lengths.min()}-{lengths.max()} samples: "
         f"{render_s * 1e3 / n_frames:.2f} ms per 16 ms block (real-time factor {seconds / render_s:.0f}), set-up {setup_s:.1f} s",
         f"  ear levels: left {level[0]:.1f} dB SPL, right {level[1]:.1f} dB SPL",
-        f"  interaural level difference follows the head: corr(ILD, -yaw) = {corr:.2f} "
-        f"(ILD {ild.min():+.1f} .. {ild.max():+.1f} dB)",
+        f"  interaural level difference follows the head while the alarm sounds: corr(ILD, -yaw) = {corr:.2f} "
+        f"(ILD {np.nanmin(ild):+.1f} .. {np.nanmax(ild):+.1f} dB over {int(loud.sum())} frames)",
         f"  wrote {out / 'demo.wav'} (float32, full scale = 132 dB SPL) and {out / 'demo.png'}",
     ])
 
 
-def _ild_per_frame(pa: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def _ild_per_frame(pa: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ILD (dB, left - right) per control block, and which blocks hold the alarm (within
+    20 dB of the loudest block; the rest is background noise, whose ILD means nothing)."""
     edges = np.r_[0, np.cumsum(lengths)]
     e = np.array([np.sum(pa[:, a:b] ** 2, axis=1) for a, b in zip(edges[:-1], edges[1:])]) + 1e-20
-    return 10 * np.log10(e[:, 0] / e[:, 1])
+    total = e.sum(axis=1)
+    return 10 * np.log10(e[:, 0] / e[:, 1]), total > total.max() * 0.01
 
 
 def _figure(pa: np.ndarray, ild: np.ndarray, yaws: np.ndarray, path: Path) -> None:
@@ -95,7 +100,7 @@ def _figure(pa: np.ndarray, ild: np.ndarray, yaws: np.ndarray, path: Path) -> No
         ax.set_ylabel(f"{name}\nfrequency (kHz)")
         ax.set_ylim(0, 8)
     tt = np.arange(ild.size) / FRAME_RATE
-    axes[2].plot(tt, ild, label="ILD left - right (dB)")
+    axes[2].plot(tt, ild, ".", label="ILD left - right (dB), alarm on")
     ax2 = axes[2].twinx()
     ax2.plot(tt, yaws, color="tab:orange", label="head yaw (deg, left +)")
     ax2.set_ylabel("head yaw (deg)")
