@@ -25,7 +25,7 @@ from typing import Callable, Protocol
 import numpy as np
 import scipy.fft as sfft
 
-from acoustic_sim.acoustics.convolution import PartitionedConvolver, assemble, fractional_hrir_table
+from acoustic_sim.acoustics.convolution import PartitionedConvolver, fractional_hrir_table
 from acoustic_sim.acoustics.room import ImageSources, Room, late_tail
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, db_spl_to_pa, frame_end_sample
@@ -79,11 +79,12 @@ class Source:
     # renderer state
     images: ImageSources | None = None
     history: np.ndarray | None = None
-    applied: np.ndarray | None = None  # early response applied in the last block (2, L)
-    applied_key: tuple | None = None
-    spectrum: np.ndarray | None = None  # rfft of ``applied`` at the last FFT size
-    early: np.ndarray | None = None  # early response for ``early_key`` (a cache)
+    applied_key: tuple | None = None  # geometry key of the response applied last block
+    spectrum: np.ndarray | None = None  # rfft (2, nfft//2+1) of that response
+    nfft: int = 0  # FFT size of the source's overlap-save convolution
+    early: np.ndarray | None = None  # early spectrum for ``early_key`` at ``early_nfft`` (a cache)
     early_key: tuple | None = None
+    early_nfft: int = 0
     band_factors: tuple | None = None  # SVD of the reflections' band damping
     tail: PartitionedConvolver | None = None
 
@@ -239,45 +240,38 @@ class BinauralRenderer:
 
     def _render_source(self, src: Source, n: int) -> np.ndarray:
         x = src.emitted(self.sample, n)
-        h_new, key = self.early_response(src)
-        changed = src.applied is not None and key != src.applied_key
-        length = max(h_new.shape[1], src.applied.shape[1] if changed else 0)
-        nfft = int(2 ** np.ceil(np.log2(length + n)))
+        geometry = self._geometry(src)
+        key, length = geometry[0], geometry[-1]
+        # One FFT size per source, grown (never shrunk) when a longer response appears.
+        nfft = max(src.nfft, int(2 ** np.ceil(np.log2(length + n))))
         if nfft > HISTORY:
             raise ConfigError(
                 f"source {src.name!r}: its early response is {length} samples long, more than the renderer streams "
                 f"({HISTORY - n}); lower the room's ism_order"
             )
-        # Keep enough input for the longest response this source may get (it grows when
-        # the head moves away), so a longer FFT never sees a truncated past.
+        if src.spectrum is not None and nfft != src.nfft:  # re-sample the old response on the new grid
+            src.spectrum = sfft.rfft(sfft.irfft(src.spectrum, n=src.nfft, axis=-1), n=nfft, axis=-1)
+        src.nfft = nfft
+        new = self._early_spectrum(src, geometry, nfft)
         src.history = np.concatenate([src.history, x])[-HISTORY:]
         seg = src.history[-nfft:] if src.history.size >= nfft else np.pad(src.history, (nfft - src.history.size, 0))
         xs = sfft.rfft(seg)
-        cached = src.spectrum if src.spectrum is not None and src.spectrum.shape[-1] == nfft // 2 + 1 else None
-        if changed:
+        if src.spectrum is not None and key != src.applied_key:
             # Overlap-save with the old and the new response, cross-faded over the block.
-            old = cached if cached is not None else sfft.rfft(src.applied, n=nfft, axis=-1)
-            new = sfft.rfft(h_new, n=nfft, axis=-1)
-            both = sfft.irfft(xs * np.stack([old, new]), n=nfft, axis=-1)[..., -n:]
+            both = sfft.irfft(xs * np.stack([src.spectrum, new]), n=nfft, axis=-1)[..., -n:]
             ramp = crossfade_ramp(n)
             y = both[0] * (1.0 - ramp) + both[1] * ramp
         else:
-            new = cached if cached is not None else sfft.rfft(h_new, n=nfft, axis=-1)
             y = sfft.irfft(xs * new, n=nfft, axis=-1)[:, -n:]
-        src.spectrum, src.applied, src.applied_key = new, h_new, key
+        src.spectrum, src.applied_key = new, key
         if src.tail is not None:
             y = y + src.tail.process(x)
         return y
 
-    def early_response(self, src: Source) -> tuple[np.ndarray, tuple]:
-        """The early binaural response (2, L) of ``src`` for the current head pose, in
-        the renderer's units (pressure at the ear per unit pressure at 1 m), and a key that
-        changes whenever the response does.
-
-        The direct path goes through the full HRIR; reflections through its first
-        ``reflection_taps`` samples (faded out), which hold nearly all of its energy and
-        its direction cues, at a quarter of the cost.
-        """
+    def _geometry(self, src: Source) -> tuple:
+        """Per image: HRTF direction index, integer delay, fractional phase and 1/r, for
+        the current head pose; with a key that changes whenever the response does and the
+        response length (samples)."""
         images = src.images.at(src.position)
         rel = images - self.head_position
         dist = np.linalg.norm(rel, axis=1)
@@ -289,38 +283,65 @@ class BinauralRenderer:
         phase = np.rint((delay - whole) * FRACTIONAL_PHASES).astype(np.int64)
         whole += phase // FRACTIONAL_PHASES
         phase %= FRACTIONAL_PHASES
-        key = (tuple(idx), tuple(whole), tuple(phase))
-        if key == src.early_key:
-            return src.early, key
-        full = self._table[idx[0], phase[0]]
+        key = (idx.tobytes(), whole.tobytes(), phase.tobytes(), dist.astype(np.float32).tobytes())
         length = max(int(whole[0]) + self._taps, int(whole[1:].max(initial=0)) + self._short_taps)
-        gains = src.images.damping / dist  # (B, M)
-        h = np.zeros((2, length))
-        h[:, whole[0] : whole[0] + self._taps] = full.reshape(-1, 2).T * gains[:, 0].mean()
+        return key, idx, whole, phase, dist, length
+
+    def _early_spectrum(self, src: Source, geometry: tuple, nfft: int) -> np.ndarray:
+        """rFFT (2, nfft//2+1) of the early response for ``geometry`` (cached per key).
+
+        All images are overlap-added in one ``bincount`` pass, straight onto the FFT grid:
+        the direct path through the full HRIR, reflections through its first
+        ``reflection_taps`` samples (faded out: nearly all of its energy and its direction
+        cues, at a quarter of the cost). With frequency-dependent walls, the reflections'
+        per-band damping (B, M) is factored once per source into a few spectral shapes (SVD,
+        99.9% of the energy); each shape's image gains go into their own sum, which is then
+        shaped by its band response. Spreading (1/r) scales images, not bands.
+        """
+        key, idx, whole, phase, dist, length = geometry
+        if key == src.early_key and nfft == src.early_nfft:
+            return src.early
+        damping = src.images.damping
+        if damping.shape[0] == 1:
+            shapes, weights = None, damping[:, 1:] / dist[1:]
+        else:
+            if src.band_factors is None:
+                u, sv, vt = np.linalg.svd(damping[:, 1:], full_matrices=False)
+                rank = int(np.searchsorted(np.cumsum(sv**2) / np.sum(sv**2), 0.999) + 1)
+                src.band_factors = (u[:, :rank], sv[:rank, None] * vt[:rank])
+            u, factors = src.band_factors
+            shapes, weights = self._band_shapes(u, nfft), factors / dist[1:]
+        sets = weights.shape[0]
+        # Set 0 holds the direct path (and, for flat walls, the reflections too).
+        direct = self._table[idx[0], phase[0]] / dist[0]
+        index = [2 * whole[0] + np.arange(direct.size)]
+        values = [direct]
         if dist.size > 1:
             rows = self._short[idx[1:], phase[1:]]
-            if gains.shape[0] == 1:
-                h += assemble(rows, whole[1:], length, gains[:, 1:])[0]
-            else:
-                h += self._assemble_bands(src, rows, whole[1:], length, dist[1:])
-        src.early, src.early_key = h, key
-        return h, key
+            base = (2 * whole[1:])[:, None] + np.arange(rows.shape[1])[None, :]
+            first = 0 if shapes is None else 1
+            for j in range(sets):
+                index.append((base + 2 * nfft * (first + j)).ravel())
+                values.append((rows * weights[j][:, None]).ravel())
+        n_parts = 1 if shapes is None else 1 + sets
+        summed = np.bincount(np.concatenate(index), weights=np.concatenate(values), minlength=2 * nfft * n_parts)
+        interleaved = summed.reshape(n_parts, nfft, 2).transpose(0, 2, 1)
+        parts = sfft.rfft(np.ascontiguousarray(interleaved), axis=-1)  # (parts, 2, F)
+        spec = parts[0]
+        if shapes is not None:
+            spec = spec + (parts[1:] * shapes[:, None, :]).sum(axis=0)
+        src.early, src.early_key, src.early_nfft = spec, key, nfft
+        return spec
 
-    def _assemble_bands(self, src: Source, rows, whole, length, dist) -> np.ndarray:
-        """Frequency-dependent walls: the per-band damping of the reflections (B, M) is
-        factored once per source into a few spectral shapes (SVD, 99.9% of the energy);
-        per block each shape's gains are assembled in one pass and shaped by its band
-        response. Spreading (1/r) scales images, not bands, so it stays on the image side."""
-        if src.band_factors is None:
-            u, s, vt = np.linalg.svd(src.images.damping[:, 1:], full_matrices=False)
-            rank = int(np.searchsorted(np.cumsum(s**2) / np.sum(s**2), 0.999) + 1)
-            src.band_factors = (u[:, :rank], s[:rank, None] * vt[:rank])
-        u, weights = src.band_factors
-        nfft = int(2 ** np.ceil(np.log2(length)))
-        parts = assemble(rows, whole, length, weights / dist)  # (rank, 2, length)
-        shapes = self._band_shapes(u, nfft)  # (rank, F)
-        total = (sfft.rfft(parts, n=nfft, axis=-1) * shapes[:, None, :]).sum(axis=0)
-        return sfft.irfft(total, n=nfft, axis=-1)[:, :length]
+    def early_response(self, src: Source) -> tuple[np.ndarray, tuple]:
+        """The early binaural response (2, L) of ``src`` for the current head pose, in
+        the renderer's units (pressure at the ear per unit pressure at 1 m), and a key that
+        changes whenever the response does."""
+        geometry = self._geometry(src)
+        key, length = geometry[0], geometry[-1]
+        nfft = max(src.nfft, int(2 ** np.ceil(np.log2(length))))
+        h = sfft.irfft(self._early_spectrum(src, geometry, nfft), n=nfft, axis=-1)[:, :length]
+        return h, key
 
     def _band_shapes(self, values: np.ndarray, nfft: int) -> np.ndarray:
         """Zero-phase gains (R, nfft//2+1) interpolating octave-band values (B, R) on a
