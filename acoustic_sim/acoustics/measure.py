@@ -105,7 +105,7 @@ def measure_hrtf(
         settle = renderer.early_response(source)[0].shape[1] + nperseg
         renderer.render(settle / SAMPLE_RATE)  # let the old orientation's early sound pass
         start = renderer.sample
-        recorded = mic(renderer.render(n_rec)).astype(float) * FULL_SCALE_PA
+        recorded = mic(renderer.render(n_rec / SAMPLE_RATE)).astype(float) * FULL_SCALE_PA
         played = source.emitted(start, n_rec)
         _, sxx = signal.welch(played, nperseg=nperseg)
         for e in range(2):
