@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from acoustic_sim.errors import AcousticSimError, ConfigError
+from acoustic_sim.errors import AcousticSimError
 
 
 def _vector(text: str) -> np.ndarray:

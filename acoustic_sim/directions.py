@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import angle_between_deg, sph_to_vec, vec_to_sph
+from acoustic_sim.frames import angle_between_deg, sph_to_vec, unit_vectors, vec_to_sph
 
 PAPER_RING_SPACING_DEG = 10.0
 """Elevation step between the rings of the paper grid, deg."""
@@ -36,14 +36,6 @@ KEMAR_ELEVATION_RANGE_DEG = (-40.0, 90.0)
 """Elevation coverage assumed when no HRTF is given (the bundled MIT KEMAR set), deg."""
 
 
-def _unit(vectors, what="direction vectors") -> np.ndarray:
-    v = np.asarray(vectors, dtype=float)
-    if v.ndim == 0 or v.shape[-1] != 3:
-        raise ConfigError(f"{what} must have shape (..., 3), got {v.shape}")
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
-        raise ConfigError(f"{what} contain a zero or non-finite vector (no direction)")
-    return v / norm
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,7 +62,7 @@ class DirectionGrid:
     ident: str = field(init=False)
 
     def __post_init__(self):
-        v = _unit(self.vectors, f"grid {self.name!r} vectors")
+        v = unit_vectors(self.vectors, f"grid {self.name!r} vectors")
         if v.ndim != 2 or v.shape[0] == 0:
             raise ConfigError(f"grid {self.name!r} needs vectors of shape (D >= 1, 3), got {v.shape}")
         az, el = vec_to_sph(v)
@@ -189,7 +181,7 @@ class DirectionGrid:
 
     def nearest(self, vectors) -> np.ndarray:
         """Index of the grid direction closest in angle to each vector (..., 3) -> (...)."""
-        v = _unit(vectors)
+        v = unit_vectors(vectors)
         _, idx = self._tree.query(v.reshape(-1, 3))
         return np.asarray(idx, dtype=np.intp).reshape(v.shape[:-1])
 
@@ -203,7 +195,7 @@ class DirectionGrid:
 
 def angular_error_deg(a_vectors, b_vectors) -> np.ndarray:
     """Angle in deg between direction vectors ``a`` and ``b`` (broadcast, (..., 3))."""
-    return angle_between_deg(_unit(a_vectors), _unit(b_vectors))
+    return angle_between_deg(unit_vectors(a_vectors), unit_vectors(b_vectors))
 
 
 _PLANE_TOLERANCE = 1e-9  # directions this close to a dividing plane lie on it (sin 180 deg != 0)
@@ -216,19 +208,19 @@ def is_left(vectors) -> np.ndarray:
     right: ``is_left`` and ``is_left(-v)`` are both False there. The paper's left/right
     accuracy compares ``is_left`` of the estimate and of the truth.
     """
-    return _unit(vectors)[..., 1] > _PLANE_TOLERANCE
+    return unit_vectors(vectors)[..., 1] > _PLANE_TOLERANCE
 
 
 def is_front(vectors) -> np.ndarray:
     """True where a direction (..., 3) is in front of the interaural axis (x > 0, same
     tolerance as :func:`is_left`)."""
-    return _unit(vectors)[..., 0] > _PLANE_TOLERANCE
+    return unit_vectors(vectors)[..., 0] > _PLANE_TOLERANCE
 
 
 def is_up(vectors) -> np.ndarray:
     """True where a direction (..., 3) is above the horizontal plane (z > 0, same tolerance
     as :func:`is_left`)."""
-    return _unit(vectors)[..., 2] > _PLANE_TOLERANCE
+    return unit_vectors(vectors)[..., 2] > _PLANE_TOLERANCE
 
 
 horizontal_plane = DirectionGrid.horizontal_plane

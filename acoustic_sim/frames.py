@@ -67,6 +67,21 @@ def vec_to_sph(vectors) -> tuple[np.ndarray, np.ndarray]:
     return az, el
 
 
+def unit_vectors(vectors, what: str = "direction vectors") -> np.ndarray:
+    """Validated unit vectors (..., 3) from any non-zero finite vectors.
+
+    Raises :class:`ConfigError` naming ``what`` for a wrong shape or a zero or non-finite
+    vector (it has no direction).
+    """
+    v = np.asarray(vectors, dtype=float)
+    if v.ndim == 0 or v.shape[-1] != 3:
+        raise ConfigError(f"{what} must have shape (..., 3), got {v.shape}")
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
+        raise ConfigError(f"{what} contain a zero or non-finite vector (no direction)")
+    return v / norm
+
+
 def angle_between_deg(a, b) -> np.ndarray:
     """Angle in degrees between direction vectors ``a`` and ``b`` (broadcast, (..., 3)).
 

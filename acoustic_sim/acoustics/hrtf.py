@@ -54,7 +54,7 @@ from scipy.fft import next_fast_len
 from scipy.spatial import ConvexHull, SphericalVoronoi, cKDTree
 
 from acoustic_sim.errors import ConfigError, HRTFError
-from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, angle_between_deg, sph_to_vec, vec_to_sph
+from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, angle_between_deg, sph_to_vec, unit_vectors, vec_to_sph
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "hrtf"
 """Folder of the bundled HRTF data (``assets/hrtf`` in the repository)."""
@@ -94,15 +94,6 @@ def kemar_directions() -> np.ndarray:
     return sph_to_vec(az, el)
 
 
-def _unit(vectors, what="direction vectors") -> np.ndarray:
-    """Validated unit vectors (..., 3) from any non-zero finite vectors."""
-    v = np.asarray(vectors, dtype=float)
-    if v.ndim == 0 or v.shape[-1] != 3:
-        raise ConfigError(f"{what} must have shape (..., 3), got {v.shape}")
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
-        raise ConfigError(f"{what} contain a zero or non-finite vector (no direction)")
-    return v / norm
 
 
 def _onsets(hrir: np.ndarray, sample_rate: float = SAMPLE_RATE) -> np.ndarray:
@@ -538,7 +529,7 @@ class HRTF:
         if not np.all(np.isfinite(hrir)):
             raise HRTFError(f"{name}: hrir contains NaN or infinite values")
         try:
-            dirs = _unit(directions, f"{name}: directions")
+            dirs = unit_vectors(directions, f"{name}: directions")
         except ConfigError as exc:
             raise HRTFError(str(exc)) from None
         if dirs.shape != (hrir.shape[0], 3):
@@ -651,7 +642,7 @@ class HRTF:
             raise ConfigError(f"sample_rate must be a positive integer in Hz, got {sample_rate!r}")
         if math.ceil(radius * sample_rate / SPEED_OF_SOUND) + MIN_LEAD_SAMPLES + 16 >= n_taps // 2:
             raise ConfigError(f"n_taps={n_taps} is too short for a {radius} m head")
-        key = None if directions is None else np.ascontiguousarray(_unit(directions)).tobytes()
+        key = None if directions is None else np.ascontiguousarray(unit_vectors(directions)).tobytes()
         return _spherical_cached(float(radius), float(distance), int(n_taps), int(sample_rate), key)
 
     @classmethod
@@ -727,7 +718,7 @@ class HRTF:
 
     def covers(self, vectors, *, tolerance_deg: float = 0.5) -> np.ndarray:
         """Whether directions (..., 3) lie inside the measured elevation range (+- tolerance)."""
-        _, el = vec_to_sph(_unit(vectors))
+        _, el = vec_to_sph(unit_vectors(vectors))
         return (el >= self.min_elevation_deg - tolerance_deg) & (
             el <= self.max_elevation_deg + tolerance_deg)
 
@@ -740,7 +731,7 @@ class HRTF:
 
     def nearest_index(self, vectors) -> np.ndarray:
         """Index of the measured direction closest in angle to each vector (..., 3) -> (...)."""
-        v = _unit(vectors)
+        v = unit_vectors(vectors)
         _, idx = self._tree().query(v.reshape(-1, 3))
         return np.asarray(idx, dtype=np.intp).reshape(v.shape[:-1])
 
@@ -845,7 +836,7 @@ class HRTF:
         """
         if mode not in _MODES:
             raise ConfigError(f"mode must be one of {_MODES}, got {mode!r}")
-        v = _unit(vectors)
+        v = unit_vectors(vectors)
         shape = v.shape[:-1]
         v = v.reshape(-1, 3)
         nearest = self.nearest_index(v)
@@ -909,7 +900,7 @@ class HRTF:
         sel = self._check_nfft(n_fft, bins)
         if (vectors is None) == (azimuth_deg is None or elevation_deg is None):
             raise ConfigError("give either vectors or both azimuth_deg and elevation_deg")
-        v = _unit(vectors) if vectors is not None else sph_to_vec(azimuth_deg, elevation_deg)
+        v = unit_vectors(vectors) if vectors is not None else sph_to_vec(azimuth_deg, elevation_deg)
         if mode == "nearest":
             return self.spectra(n_fft)[self.nearest_index(v)][..., sel]
         return np.fft.rfft(self.hrirs_for(v, mode=mode), int(n_fft), axis=-1)[..., sel]

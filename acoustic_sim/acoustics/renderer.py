@@ -20,7 +20,7 @@ field, RMS pressure ``20 uPa * 10**(L/20) / r`` at distance r (before the head's
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 import scipy.fft as sfft
