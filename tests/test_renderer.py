@@ -158,3 +158,28 @@ def test_errors(kemar):
     r.add_source("near", np.ones(10), np.asarray(room.listener) + [0.05, 0, 0], level_db=70)
     with pytest.raises(ConfigError, match="inside the head"):
         r.render_block()
+
+
+def test_ego_noise_hook_adds_the_robots_own_noise(kemar):
+    calls = []
+
+    def motors(n, rng):
+        calls.append(n)
+        return np.full((2, n), 0.01)  # 0.01 Pa at both ears
+
+    r = BinauralRenderer(kemar, ANECHOIC, rng=np.random.default_rng(0), background=False, ego_noise=motors)
+    y = r.render_block()
+    assert calls == [706] and np.allclose(y, 0.01)
+    bad = BinauralRenderer(kemar, ANECHOIC, rng=np.random.default_rng(0), background=False, ego_noise=lambda n, rng: np.zeros(n))
+    with pytest.raises(ConfigError, match="ego noise"):
+        bad.render_block()
+
+
+def test_background_noise_has_the_rooms_level(kemar):
+    room = room_preset("lab")  # 58 dB SPL
+    r = BinauralRenderer(kemar, room, rng=np.random.default_rng(0))
+    y = r.render(1.0)
+    level = 20 * np.log10(np.sqrt(np.mean(y**2, axis=1)) / 20e-6)
+    assert np.all(np.abs(level - 58.0) < 0.5), level
+    coherence = np.corrcoef(y)[0, 1]
+    assert 0.2 < coherence < 0.95  # partly coherent, as a diffuse field is at low frequencies
