@@ -161,11 +161,10 @@ class Room:
         """A pyroomacoustics ShoeBox with this room's geometry and materials (no air absorption)."""
         if self.anechoic:
             raise RoomError(f"room {self.name!r} is anechoic: it has no pyroomacoustics shoebox")
+        bands = self.absorption_bands()
         materials = {
-            wall: pra.Material({"coeffs": list(np.atleast_1d(self.absorption[wall]).astype(float)) * (
-                len(BAND_CENTERS_HZ) if np.size(self.absorption[wall]) == 1 else 1
-            ), "center_freqs": list(BAND_CENTERS_HZ)})
-            for wall in WALLS
+            wall: pra.Material({"coeffs": [float(a) for a in bands[i]], "center_freqs": list(BAND_CENTERS_HZ)})
+            for i, wall in enumerate(WALLS)
         }
         return pra.ShoeBox(
             list(self.dimensions), fs=fs, materials=materials,
