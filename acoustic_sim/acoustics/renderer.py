@@ -25,7 +25,7 @@ from typing import Protocol
 import numpy as np
 import scipy.fft as sfft
 
-from acoustic_sim.acoustics.convolution import PartitionedConvolver, fractional_hrir_table
+from acoustic_sim.acoustics.convolution import PartitionedConvolver, assemble, fractional_hrir_table
 from acoustic_sim.acoustics.room import ImageSources, Room, late_tail
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, db_spl_to_pa, frame_end_sample
@@ -290,8 +290,8 @@ class BinauralRenderer:
     def _early_spectrum(self, src: Source, geometry: tuple, nfft: int) -> np.ndarray:
         """rFFT (2, nfft//2+1) of the early response for ``geometry`` (cached per key).
 
-        All images are overlap-added in one ``bincount`` pass, straight onto the FFT grid:
-        the direct path through the full HRIR, reflections through its first
+        Images are overlap-added straight onto the FFT grid (:func:`assemble`): the
+        direct path through the full HRIR, reflections through its first
         ``reflection_taps`` samples (faded out: nearly all of its energy and its direction
         cues, at a quarter of the cost). With frequency-dependent walls, the reflections'
         per-band damping (B, M) is factored once per source into a few spectral shapes (SVD,
@@ -311,25 +311,19 @@ class BinauralRenderer:
                 src.band_factors = (u[:, :rank], sv[:rank, None] * vt[:rank])
             u, factors = src.band_factors
             shapes, weights = self._band_shapes(u, nfft), factors / dist[1:]
-        sets = weights.shape[0]
-        # Set 0 holds the direct path (and, for flat walls, the reflections too).
-        direct = self._table[idx[0], phase[0]] / dist[0]
-        index = [2 * whole[0] + np.arange(direct.size)]
-        values = [direct]
+        # Reflections: one overlap-add per weight set, straight onto the FFT grid.
+        parts = np.zeros((weights.shape[0], 2, nfft))
         if dist.size > 1:
-            rows = self._short[idx[1:], phase[1:]]
-            base = (2 * whole[1:])[:, None] + np.arange(rows.shape[1])[None, :]
-            first = 0 if shapes is None else 1
-            for j in range(sets):
-                index.append((base + 2 * nfft * (first + j)).ravel())
-                values.append((rows * weights[j][:, None]).ravel())
-        n_parts = 1 if shapes is None else 1 + sets
-        summed = np.bincount(np.concatenate(index), weights=np.concatenate(values), minlength=2 * nfft * n_parts)
-        interleaved = summed.reshape(n_parts, nfft, 2).transpose(0, 2, 1)
-        parts = sfft.rfft(np.ascontiguousarray(interleaved), axis=-1)  # (parts, 2, F)
-        spec = parts[0]
+            parts = assemble(self._short[idx[1:], phase[1:]], whole[1:], nfft, weights)
+        # The direct path goes to its own (unshaped) part when the walls shape the others.
+        direct = self._table[idx[0], phase[0]].reshape(-1, 2).T / dist[0]
         if shapes is not None:
-            spec = spec + (parts[1:] * shapes[:, None, :]).sum(axis=0)
+            parts = np.concatenate([np.zeros((1, 2, nfft)), parts])
+        parts[0, :, whole[0] : whole[0] + direct.shape[1]] += direct
+        spec_parts = sfft.rfft(parts, axis=-1)  # (parts, 2, F)
+        spec = spec_parts[0]
+        if shapes is not None:
+            spec = spec + (spec_parts[1:] * shapes[:, None, :]).sum(axis=0)
         src.early, src.early_key, src.early_nfft = spec, key, nfft
         return spec
 
