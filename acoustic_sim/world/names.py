@@ -1,0 +1,63 @@
+"""Names of the MuJoCo elements that the rest of the project relies on.
+
+The composed scenes (``scene.py``) attach each asset under a prefix; the view (``view.py``)
+looks elements up by these full names and by nothing else, so an asset can be rebuilt
+without touching the code that reads it. World frame: MuJoCo's, z up. The robot faces +x.
+"""
+
+from __future__ import annotations
+
+# Prefixes used by scene.py when attaching assets with MjSpec.attach(..., prefix=...).
+ROBOT = "robot/"
+CAR = "car/"
+WHEELCHAIR = "wheelchair/"
+PERSON = "person/"
+SPEAKER = "speaker/"
+
+# -- robot (assets/musashi_head + upper body) --------------------------------------------
+HEAD_BODY = ROBOT + "head"
+EAR_LEFT_SITE = ROBOT + "ear_left"  # ear-canal entrance, left (+y in the head frame)
+EAR_RIGHT_SITE = ROBOT + "ear_right"
+EYE_CAMERAS = (ROBOT + "eye_left", ROBOT + "eye_right")  # cameras, looking along the head's +x
+NECK_JOINTS = (ROBOT + "neck_yaw", ROBOT + "neck_pitch")  # yaw +-90 deg (+ = left), pitch +-45 deg (+ = nose down)
+EYE_JOINTS = (ROBOT + "eye_yaw", ROBOT + "eye_pitch")  # both eyes move together (one pair of joints drives both)
+ARM_SIDES = ("left", "right")
+ARM_JOINT_SUFFIXES = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist")
+
+
+def arm_joints(side: str) -> tuple[str, ...]:
+    """Joint (and position-actuator) names of one arm, shoulder to wrist."""
+    return tuple(f"{ROBOT}{side}_{s}" for s in ARM_JOINT_SUFFIXES)
+
+
+def hand_body(side: str) -> str:
+    return f"{ROBOT}{side}_hand"
+
+
+def grasp_site(side: str) -> str:
+    """Site at the palm centre; a grasp attaches the lever handle here."""
+    return f"{ROBOT}{side}_palm"
+
+
+# -- car cabin (assets/car_cabin) ----------------------------------------------------------
+CABIN_INTERIOR_SITE = CAR + "interior"  # box-typed site: the cabin's interior air volume (the acoustic room)
+ALARM_SPEAKER_SITE = CAR + "alarm_speaker"  # dashboard, about 0.8 m in front of the head
+GEARSHIFT_JOINT = CAR + "gearshift"  # hinge; positions P, R, N, D in this order, + = toward D
+GEARSHIFT_KNOB_SITE = CAR + "gearshift_knob"
+GEARSHIFT_HANDLE_BODY = CAR + "gearshift_lever"
+BRAKE_JOINT = CAR + "brake"  # hinge; + = pulled up
+BRAKE_HANDLE_SITE = CAR + "brake_handle"
+BRAKE_HANDLE_BODY = CAR + "brake_lever"
+BRAKE_PAWL_SITE = CAR + "brake_pawl"  # where the ratchet clicks come from
+IGNITION_SITE = CAR + "ignition"
+HORN_SITE = CAR + "horn"  # front grille (distractor "outside the cabin")
+GEAR_NAMES = ("P", "R", "N", "D")
+
+# -- wheelchair room (assets/wheelchair) ---------------------------------------------------
+WHEELCHAIR_ROOT_JOINT = WHEELCHAIR + "root"  # free joint of the chassis
+WHEEL_JOINTS = (WHEELCHAIR + "left_wheel", WHEELCHAIR + "right_wheel")  # velocity actuators of the same names
+ROOM_INTERIOR_SITE = "room_interior"  # box-typed site: the room's air volume
+PERSON_ROOT_BODY = PERSON + "body"  # mocap body: place the person anywhere
+PERSON_HEAD_BODY = PERSON + "head"
+PERSON_MOUTH_SITE = PERSON + "mouth"
+LOUDSPEAKER_SITE = SPEAKER + "cone"  # distractor loudspeaker (mocap)
