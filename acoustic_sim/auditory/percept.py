@@ -1,0 +1,101 @@
+"""What the auditory pipeline hands on, once per ear frame: the typed percept.
+
+A :class:`Percept` is the output of the paper's "central nervous system" for one 16 ms ear
+frame: which sounds are present (MelCNN, fused over the ears) and, for each detected sound,
+where it is (SSDENet's existence map over the direction grid, summed over the valid bins
+of that sound). Directions are in the head frame (x forward, y left, z up; azimuth
+counter-clockwise from the nose, elevation up), degrees at the boundary, unit vectors
+inside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, kw_only=True)
+class DirectionEstimate:
+    """Where one sound comes from.
+
+    Attributes
+    ----------
+    vector : numpy.ndarray
+        Unit vector (3,) in the head frame of the estimated direction.
+    azimuth_deg, elevation_deg : float
+        The same direction in degrees (azimuth -180..180, + = left; elevation -90..90).
+    existence : numpy.ndarray
+        float32 (D,): P(d) summed over the valid bins, one value per grid direction.
+    confidence : float
+        0..1: how much the peak stands out, ``(max - mean) / max`` of ``existence``
+        (0 for a flat map, 1 for a single non-zero direction).
+    n_bins : int
+        Number of frequency bins that were summed (0 means no estimate was possible).
+    method : str
+        ``ssdenet``, ``music`` or ``gcc-phat``.
+    """
+
+    vector: np.ndarray
+    azimuth_deg: float
+    elevation_deg: float
+    existence: np.ndarray
+    confidence: float
+    n_bins: int
+    method: str = "ssdenet"
+
+    def to_json(self) -> dict:
+        return {
+            "azimuth_deg": round(float(self.azimuth_deg), 2),
+            "elevation_deg": round(float(self.elevation_deg), 2),
+            "confidence": round(float(self.confidence), 4),
+            "n_bins": int(self.n_bins),
+            "method": self.method,
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Percept:
+    """The pipeline's output for one ear frame.
+
+    Attributes
+    ----------
+    frame : int
+        Ear frame number k (frame k ends at ``frames.frame_end_sample(k)``).
+    time_s : float
+        End time of the frame in seconds on the sample clock.
+    classes : tuple of str
+        Class names, the order of ``probabilities``.
+    probabilities : numpy.ndarray
+        float32 (C,): fused existence probability of each class, 0..1.
+    detected : tuple of str
+        Classes whose probability is at least the pipeline's threshold, most likely first.
+    directions : dict of str to DirectionEstimate
+        One estimate per detected class that had valid bins.
+    mel : numpy.ndarray
+        float32 (2, N_MELS): the newest frame of the normalised log-mel input (left, right),
+        for display.
+    volume : numpy.ndarray
+        float64 (2,): the ear volumes V_l, V_r used for the fusion.
+    """
+
+    frame: int
+    time_s: float
+    classes: tuple[str, ...]
+    probabilities: np.ndarray
+    detected: tuple[str, ...]
+    directions: dict = field(default_factory=dict)
+    mel: np.ndarray | None = None
+    volume: np.ndarray | None = None
+
+    def probability(self, name: str) -> float:
+        return float(self.probabilities[self.classes.index(name)])
+
+    def to_json(self) -> dict:
+        return {
+            "t": round(float(self.time_s), 6),
+            "frame": int(self.frame),
+            "probabilities": {c: round(float(p), 4) for c, p in zip(self.classes, self.probabilities)},
+            "detected": list(self.detected),
+            "directions": {c: d.to_json() for c, d in self.directions.items()},
+        }
