@@ -39,6 +39,21 @@ def grasp_site(side: str) -> str:
     return f"{ROBOT}{side}_palm"
 
 
+ROBOT_ROOT_BODY = ROBOT + "torso"  # origin at the seated robot's hip point (H-point)
+EAR_SPACING_M = 0.152
+"""Distance (m) between the ear-canal entrances: the KEMAR head breadth (Burkhard & Sachs 1975),
+the head of the bundled MIT KEMAR HRTF (assets/musashi_head/README.md)."""
+GRASP_TARGET_BODIES = {"left": CAR + "gearshift_lever", "right": CAR + "brake_lever"}
+"""Lever body each hand grasps in the cabin: the gearshift on the left, the brake on the right."""
+GRASP_TARGET_SITES = {"left": CAR + "gearshift_knob", "right": CAR + "brake_handle"}
+"""Handle site of each hand's lever; the palm must be this close to grasp (scene.grasp)."""
+
+
+def grasp_equality(side: str) -> str:
+    """Equality (cabin scene; a ball-joint ``connect``) that holds this hand on its lever while active."""
+    return f"{ROBOT}{side}_grasp"
+
+
 # -- car cabin (assets/car_cabin) ----------------------------------------------------------
 CABIN_INTERIOR_SITE = CAR + "interior"  # box-typed site: the cabin's interior air volume (the acoustic room)
 ALARM_SPEAKER_SITE = CAR + "alarm_speaker"  # dashboard, about 0.8 m in front of the head
@@ -52,6 +67,16 @@ BRAKE_PAWL_SITE = CAR + "brake_pawl"  # where the ratchet clicks come from
 IGNITION_SITE = CAR + "ignition"
 HORN_SITE = CAR + "horn"  # front grille (distractor "outside the cabin")
 GEAR_NAMES = ("P", "R", "N", "D")
+# Mechanism geometry, declared by the cabin asset as MuJoCo custom numerics (<custom><numeric>)
+# and read by view.py; the asset's detent bumps and ratchet pins sit at these angles.
+GEAR_DETENTS_NUMERIC = CAR + "gear_detents"  # joint angle (rad) of each detent, in GEAR_NAMES order
+BRAKE_TEETH_NUMERIC = CAR + "brake_teeth"  # lever angle (rad) at which it rests on tooth k, k = 1..n
+BRAKE_PAWL_JOINT = CAR + "pawl"  # hinge of the ratchet pawl; a pin passing lifts it, its snap back is the click
+BRAKE_RELEASE_ACTUATOR = CAR + "brake_release"  # motor on the pawl, ctrl 0..1: the release button (1 lifts the pawl)
+GEAR_DETENT_JOINT = CAR + "gear_detent"  # slide joint of the spring-loaded detent roller under the gearshift
+CABIN_SEAT_SITE = CAR + "driver_seat"  # the driver's hip point; the robot's torso is attached here
+GEAR_DETENT_ANGLES_DEG = (0.0, 15.0, 30.0, 45.0)  # the asset's GEAR_DETENTS_NUMERIC, in degrees
+BRAKE_TOOTH_ANGLES_DEG = (8.0, 15.0, 22.0, 29.0, 36.0, 43.0, 50.0)  # the asset's BRAKE_TEETH_NUMERIC, in degrees
 
 # -- wheelchair room (assets/wheelchair) ---------------------------------------------------
 WHEELCHAIR_ROOT_JOINT = WHEELCHAIR + "root"  # free joint of the chassis
@@ -61,3 +86,6 @@ PERSON_ROOT_BODY = PERSON + "body"  # mocap body: place the person anywhere
 PERSON_HEAD_BODY = PERSON + "head"
 PERSON_MOUTH_SITE = PERSON + "mouth"
 LOUDSPEAKER_SITE = SPEAKER + "cone"  # distractor loudspeaker (mocap)
+WHEELCHAIR_CHASSIS_BODY = WHEELCHAIR + "chassis"  # carries the free joint; origin on the floor between the wheels
+WHEELCHAIR_SEAT_SITE = WHEELCHAIR + "seat"  # the robot's hip point on the wheelchair
+LOUDSPEAKER_BODY = SPEAKER + "body"  # mocap body of the loudspeaker: place it anywhere
