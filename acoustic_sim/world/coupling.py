@@ -1,0 +1,508 @@
+"""The coupling: the MuJoCo world drives the acoustic world, once per control step.
+
+One control step is one ear frame (16 ms at 62.5 Hz): ``n`` physics steps of the model's
+timestep (8 of 2 ms), then one block of binaural audio of 705 or 706 samples on the
+project clock (DESIGN.md). :meth:`Coupling.advance` runs the physics and does everything
+but the audio: it traces the mechanisms at every physics step, turns the traces and the
+scheduled requests into :class:`~acoustic_sim.world.events.SoundEvent` s, reads the ear and
+source poses from the view, expresses them in the acoustic room's frame and hands them to
+the renderer. :meth:`Coupling.render` then mixes the events' sounds into their emitters
+and renders the block; :meth:`Coupling.step` does both.
+
+Room frame. The renderer's rooms have their origin at a corner (x from 0 to L, ...). The
+acoustic room is the scene's box-typed air-volume site (``car/interior`` or
+``room_interior``): its corner at the box's (-x, -y, -z) extreme, its axes the box's. The
+renderer's :class:`~acoustic_sim.acoustics.room.Room` must have the box's dimensions (the
+scene builds it from the same site, so the two never disagree; this is checked).
+
+Emitters. Every emitter (:data:`~acoustic_sim.world.events.EMITTERS`) that has sounded is one
+renderer source, created at its first event and removed after it has been silent for
+``idle_release_s`` plus the room's reverberation. Its signal is a short ring buffer, played
+in a loop, that :meth:`render` fills with the emitter's sounds for exactly the samples of
+the block about to be rendered: events therefore start (and the alarm stops) on their own
+sample, several sounds of one emitter overlap, and adding a sound never costs a new source
+(which takes tens of milliseconds to set up). The ring holds pressure at 1 m in pascal (the
+source's level is 1 Pa for a unit sample), so each sound carries its own level.
+
+Outside emitters (the car horn) play from the point of the room nearest to their site,
+``outside_margin_m`` inside the walls (just inside the windscreen), at their level minus
+the body's transmission loss and minus the spreading from the site to that point,
+``20 log10(max(d, 1 m) / 1 m)`` dB: the windscreen re-radiates what reaches it, less what
+the body stops.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import FRAME_RATE, P_REF, SAMPLE_RATE, db_spl_to_pa, frame_end_sample
+from acoustic_sim.world import names
+from acoustic_sim.world.egonoise import EgoNoiseConfig, MotorEgoNoise
+from acoustic_sim.world.events import EMITTERS, EventsConfig, SoundEvent, SoundEvents
+from acoustic_sim.world.view import WorldView
+
+RING = 8192
+"""Samples in an emitter's ring buffer (more than any control block, 4096 at most)."""
+
+UNIT_LEVEL_DB = float(20.0 * np.log10(1.0 / P_REF))
+"""Source level (dB SPL at 1 m) at which a unit sample is 1 Pa at 1 m."""
+
+HEAD_POSITION_TOL = 1e-4
+"""Head moves (m, per coordinate) below this are not sent to the renderer."""
+
+HEAD_ROTATION_TOL = 1e-4
+"""Head turns (rotation-matrix entries, about rad) below this are not sent to the renderer."""
+
+STOP_FADE_S = 0.005
+"""A looping sound fades out over this time (s) from its stop sample (a switched-off beeper)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class RoomFrame:
+    """The acoustic room's frame in the world: a box with its origin at a corner.
+
+    Attributes
+    ----------
+    origin : numpy.ndarray, shape (3,)
+        World position (m) of the room's corner (0, 0, 0).
+    rotation : numpy.ndarray, shape (3, 3)
+        Room to world rotation (columns: the room's axes in world coordinates).
+    dimensions : numpy.ndarray, shape (3,)
+        Room size (m) along its x, y, z.
+    """
+
+    origin: np.ndarray
+    rotation: np.ndarray
+    dimensions: np.ndarray
+
+    @classmethod
+    def from_box(cls, centre, rotation, half_sizes) -> RoomFrame:
+        """The frame of a box given by its centre (m, world), orientation (box to world)
+        and half-sizes (m)."""
+        c = np.asarray(centre, dtype=float)
+        r = np.asarray(rotation, dtype=float)
+        h = np.asarray(half_sizes, dtype=float)
+        if c.shape != (3,) or r.shape != (3, 3) or h.shape != (3,) or np.any(h <= 0):
+            raise ConfigError(f"a room box needs a centre (3,), a rotation (3, 3) and positive half-sizes (3,), got {h}")
+        return cls(origin=c - r @ h, rotation=r, dimensions=2.0 * h)
+
+    def to_room(self, points) -> np.ndarray:
+        """World points (..., 3) in room coordinates (m)."""
+        return (np.asarray(points, dtype=float) - self.origin) @ self.rotation
+
+    def to_world(self, points) -> np.ndarray:
+        """Room points (..., 3) in world coordinates (m)."""
+        return np.asarray(points, dtype=float) @ self.rotation.T + self.origin
+
+    def rotation_to_room(self, rotation) -> np.ndarray:
+        """A world orientation (3x3, frame to world) as frame to room."""
+        return self.rotation.T @ np.asarray(rotation, dtype=float)
+
+    def nearest_inside(self, point_room, margin: float) -> np.ndarray:
+        """The point of the room at least ``margin`` (m) inside its walls nearest to ``point_room``."""
+        return np.clip(np.asarray(point_room, dtype=float), margin, self.dimensions - margin)
+
+
+@dataclasses.dataclass
+class _Sound:
+    """One sound of an emitter: pressure at 1 m (Pa) = gain * signal."""
+
+    signal: np.ndarray
+    start: int
+    gain: float
+    loop: bool
+    fade: int  # samples of the fade-out after a loop's stop
+    stop: int | None = None
+
+    def end(self) -> float:
+        """First sample after the sound (inf while a loop runs)."""
+        if self.loop:
+            return np.inf if self.stop is None else self.stop + self.fade
+        return self.start + self.signal.size
+
+    def write(self, out: np.ndarray, b0: int) -> None:
+        """Add the sound's samples for ``b0 .. b0 + out.size`` into ``out``."""
+        t = np.arange(b0, b0 + out.size)
+        idx = t - self.start
+        valid = idx >= 0
+        if self.loop:
+            x = self.signal[np.mod(idx, self.signal.size)]
+            if self.stop is not None:
+                fade = np.clip(1.0 - (t - self.stop) / self.fade, 0.0, 1.0)
+                x = x * (0.5 - 0.5 * np.cos(np.pi * fade))
+        else:
+            valid &= idx < self.signal.size
+            x = self.signal[np.clip(idx, 0, self.signal.size - 1)]
+        out += np.where(valid, x, 0.0) * self.gain
+
+
+@dataclasses.dataclass
+class _EmitterState:
+    name: str
+    anchor: str
+    outside: bool
+    sounds: list = dataclasses.field(default_factory=list)
+    ring: np.ndarray | None = None  # the renderer source's signal (None: no source)
+    ring_start: int = 0
+    position: np.ndarray | None = None  # room frame, as last given to the renderer
+    silent_from: float = 0.0  # sample from which the emitter has nothing left to play
+
+
+class Coupling:
+    """Drive a binaural renderer from a MuJoCo world, one control step at a time.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        A composed scene (``world.scene``); its timestep must divide the 16 ms control step.
+    data : mujoco.MjData
+    renderer : acoustic_sim.acoustics.renderer.BinauralRenderer or None
+        Renders the ears; its room must be the scene's air volume (same dimensions) and its
+        clock at a frame boundary. ``None`` runs the world without audio (events and poses
+        are still computed).
+    rng : numpy.random.Generator
+        Draws every event sound (through :class:`SoundEvents`); nothing else.
+    events_config : EventsConfig, optional
+    interior_site : str, optional
+        The box site of the acoustic room; default ``car/interior`` if the scene has it,
+        else ``room_interior``.
+    outside_margin_m : float
+        How far inside the walls (m) outside emitters play from, 0.05-0.5.
+    move_threshold_m : float
+        A source is moved in the renderer when its anchor moved more than this (m) since
+        the last move (about a quarter sample of delay at 1 mm); 0-0.05.
+    idle_release_s : float
+        A silent emitter's source is removed after this (s) plus the room's reverberation.
+
+    Attributes
+    ----------
+    view : WorldView
+    events : SoundEvents
+        Schedule calls, key turns and distractors here.
+    ego_noise : MotorEgoNoise or None
+        The renderer's ego-noise when it is a :class:`MotorEgoNoise`; updated every step.
+    frame : RoomFrame
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        renderer,
+        *,
+        rng: np.random.Generator,
+        events_config: EventsConfig | None = None,
+        interior_site: str | None = None,
+        outside_margin_m: float = 0.1,
+        move_threshold_m: float = 0.002,
+        idle_release_s: float = 1.0,
+    ) -> None:
+        self.model, self._data = model, data
+        self.view = WorldView(model, data)
+        mujoco.mj_forward(model, data)  # poses of a fresh MjData are not computed yet
+        self.renderer = renderer
+        self.sample_rate = renderer.sample_rate if renderer is not None else SAMPLE_RATE
+        dt = float(model.opt.timestep)
+        ratio = 1.0 / (FRAME_RATE * dt)
+        if not np.isclose(ratio, round(ratio), rtol=0, atol=1e-9) or round(ratio) < 1:
+            raise ConfigError(f"the physics timestep {dt} s must divide the {1e3 / FRAME_RATE:g} ms control step")
+        self.n_substeps = round(ratio)
+        self.samples_per_substep = self.sample_rate / (FRAME_RATE * self.n_substeps)
+        for what, value, lo, hi in (("outside_margin_m", outside_margin_m, 0.05, 0.5),
+                                    ("move_threshold_m", move_threshold_m, 0.0, 0.05),
+                                    ("idle_release_s", idle_release_s, 0.0, 60.0)):
+            if not np.isfinite(value) or not lo <= value <= hi:
+                raise ConfigError(f"Coupling: {what} must be {lo}..{hi}, got {value}")
+        self.outside_margin_m = float(outside_margin_m)
+        self.move_threshold_m = float(move_threshold_m)
+
+        if interior_site is None:
+            interior_site = names.CABIN_INTERIOR_SITE if self.view.has_site(names.CABIN_INTERIOR_SITE) else names.ROOM_INTERIOR_SITE
+        if not self.view.has_site(interior_site):
+            raise ConfigError(
+                f"the scene has no air-volume site ({names.CABIN_INTERIOR_SITE!r} or {names.ROOM_INTERIOR_SITE!r}) "
+                "to place the acoustic room"
+            )
+        self.interior_site = interior_site
+        self.frame = RoomFrame.from_box(*self.view.site_box(interior_site))
+        linger = 0.0
+        if renderer is not None:
+            room = renderer.room
+            if room.anechoic or not np.allclose(room.dimensions, self.frame.dimensions, atol=1e-3):
+                raise ConfigError(
+                    f"the renderer's room {room.name!r} ({'anechoic' if room.anechoic else room.dimensions}) is not the scene's "
+                    f"air volume {interior_site!r} ({tuple(np.round(self.frame.dimensions, 3))} m): build it from the scene"
+                )
+            if renderer.sample != frame_end_sample(renderer.frame, renderer.sample_rate):
+                raise ConfigError(f"the renderer's clock (sample {renderer.sample}) is not at a frame boundary")
+            linger = float(np.max(room.rt60_bands(), initial=0.0)) * 65.0 / 60.0 + 0.05
+        self._release_samples = round((idle_release_s + linger) * self.sample_rate)
+        self.frame_index = renderer.frame if renderer is not None else 0
+
+        self.events = SoundEvents.from_view(self.view, rng, events_config, sample_rate=self.sample_rate)
+        self.ego_noise = renderer.ego_noise if renderer is not None and isinstance(renderer.ego_noise, MotorEgoNoise) else None
+        if self.ego_noise is not None and self.ego_noise.actuator_indices is None:
+            raise ConfigError("the renderer's MotorEgoNoise must be built with MotorEgoNoise.from_view for this world")
+        self._emitters = {
+            e.name: _EmitterState(e.name, e.anchor, e.outside) for e in EMITTERS.values() if e.name in self.events.emitters
+        }
+        self._gear_trace = [0.0] * self.n_substeps  # mechanism angles (rad) after each physics step
+        self._brake_trace = [0.0] * self.n_substeps
+        self._pawl_trace = [0.0] * self.n_substeps
+        self.head_position = np.zeros(3)
+        """Head centre (m, room frame) after the last step."""
+        self.head_rotation = np.eye(3)
+        """Head orientation (head to room) after the last step."""
+        self._sent_head: tuple[np.ndarray, np.ndarray] | None = None
+        self.scene_info = None
+        """The :class:`~acoustic_sim.world.scene.SceneInfo` when built by :meth:`from_scene`."""
+        self.last_events: list[SoundEvent] = []
+        """The events of the last step."""
+        self.reset_events()
+
+    @classmethod
+    def from_scene(
+        cls,
+        name: str,
+        *,
+        rng: np.random.Generator,
+        hrtf="kemar",
+        scene_config=None,
+        ego_noise: EgoNoiseConfig | bool | None = True,
+        background: bool = True,
+        late: bool = True,
+        events_config: EventsConfig | None = None,
+    ) -> Coupling:
+        """Load a composed scene and wire it to a renderer of its own acoustic room.
+
+        Parameters
+        ----------
+        name : str
+            ``cabin`` or ``room`` (:data:`acoustic_sim.world.scene.SCENES`).
+        rng : numpy.random.Generator
+            Spawns the renderer's generator (noise, late tails) and the events' (sounds).
+        hrtf : str or HRTF
+            The ears: an HRTF or a name for :meth:`HRTF.load` (default the bundled KEMAR).
+        scene_config : CabinConfig or RoomConfig, optional
+            The scene's initial state (:func:`acoustic_sim.world.scene.load_scene`).
+        ego_noise : EgoNoiseConfig or bool
+            ``True`` (default) for the default motor noise, a config for another, ``False``
+            or ``None`` for none.
+        background, late : bool
+            The renderer's room background noise and late reverberation.
+        events_config : EventsConfig, optional
+
+        Returns
+        -------
+        Coupling
+            With ``model``, ``data`` (via :attr:`view`), ``renderer`` and :attr:`scene_info`.
+        """
+        from acoustic_sim.acoustics.hrtf import HRTF
+        from acoustic_sim.acoustics.renderer import BinauralRenderer
+        from acoustic_sim.world.scene import load_scene
+
+        if not isinstance(rng, np.random.Generator):
+            raise ConfigError(f"Coupling.from_scene needs a numpy.random.Generator, got {type(rng).__name__}")
+        model, data, info = load_scene(name, config=scene_config)
+        ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
+        ego = None
+        if ego_noise is not None and ego_noise is not False:
+            config = ego_noise if isinstance(ego_noise, EgoNoiseConfig) else None
+            ego = MotorEgoNoise.from_view(WorldView(model, data), config, sample_rate=ears.sample_rate)
+        render_rng, events_rng = rng.spawn(2)
+        renderer = BinauralRenderer(ears, info.room, rng=render_rng, sample_rate=ears.sample_rate, background=background,
+                                    late=late, ego_noise=ego)
+        coupling = cls(model, data, renderer, rng=events_rng, events_config=events_config)
+        coupling.scene_info = info
+        return coupling
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The simulation state (write controls here; read it through :attr:`view`)."""
+        return self._data
+
+    # -- clock ----------------------------------------------------------------------------------
+    @property
+    def frame_index(self) -> int:
+        """Control steps since the project clock's origin: the next block is this + 1."""
+        return self._frame_index
+
+    @frame_index.setter
+    def frame_index(self, k: int) -> None:
+        self._frame_index = int(k)
+        # frames.frame_end_sample is the one definition of the clock; evaluating it for a
+        # chunk of frames at a time keeps its numpy overhead out of the control step.
+        first = getattr(self, "_ends_first", None)
+        if first is None or not first <= self._frame_index < first + len(self._ends):
+            self._ends_first = self._frame_index
+            self._ends = [int(v) for v in frame_end_sample(np.arange(self._frame_index, self._frame_index + 4096), self.sample_rate)]
+        self.block_start = self._ends[self._frame_index - self._ends_first]
+        """First sample of the next block on the project clock."""
+
+    @property
+    def time_s(self) -> float:
+        """Project-clock time (s) of the next block's start."""
+        return self.block_start / self.sample_rate
+
+    def reset_events(self) -> None:
+        """Restart the events at the current state (after a reset of ``data``): mechanisms
+        are re-read without events, requests and sounding emitters are dropped.
+
+        Runs ``mj_forward`` first, so that poses and actuator forces match the state."""
+        mujoco.mj_forward(self.model, self._data)
+        v = self.view
+        self.events.reset(
+            sample=self.block_start,
+            gear_angle=v.gearshift_angle() if v.gearshift_geometry is not None else None,
+            brake_angle=v.brake_angle() if v.ratchet_geometry is not None else None,
+            pawl_angle=v.pawl_angle() if v.ratchet_geometry is not None else None,
+        )
+        for e in self._emitters.values():
+            e.sounds.clear()
+            e.silent_from = self.block_start
+        self._sync_poses()
+
+    # -- stepping -------------------------------------------------------------------------------
+    def advance(self) -> list[SoundEvent]:
+        """Run one control step of physics and couple it, without rendering audio.
+
+        Returns
+        -------
+        list of SoundEvent
+            The events that start (or stop) in this step's block.
+        """
+        m, d, v = self.model, self._data, self.view
+        self._drop_finished(self.block_start)
+        gear = v.gearshift_geometry is not None
+        brake = v.ratchet_geometry is not None
+        for j in range(self.n_substeps):
+            mujoco.mj_step(m, d)
+            if gear:
+                self._gear_trace[j] = v.gearshift_angle()
+            if brake:
+                self._brake_trace[j] = v.brake_angle()
+                self._pawl_trace[j] = v.pawl_angle()
+        first = self.frame_index * self.n_substeps + 1
+        positions = [(first + j) * self.samples_per_substep for j in range(self.n_substeps)]
+        self.frame_index += 1
+        end = self.block_start
+        events = self.events.process(
+            end, positions, gear_angles=self._gear_trace if gear else None,
+            brake_angles=self._brake_trace if brake else None, pawl_angles=self._pawl_trace if brake else None,
+        )
+        for ev in events:
+            self._apply(ev)
+        self._sync_poses()
+        if self.ego_noise is not None:
+            self.ego_noise.update(v)
+        self.last_events = events
+        return events
+
+    def render(self) -> np.ndarray:
+        """Render the block of the last :meth:`advance`: eardrum pressure (2, n) in Pa."""
+        r = self.renderer
+        if r is None:
+            raise ConfigError("this coupling has no renderer (it was built with renderer=None)")
+        b0, b1 = r.sample, self.block_start
+        if b1 - b0 <= 0 or r.frame != self.frame_index - 1:
+            raise ConfigError(
+                f"render() must follow one advance(): the renderer is at frame {r.frame}, the world at {self.frame_index}"
+            )
+        for e in self._emitters.values():
+            live = bool(e.sounds) or b0 < e.silent_from + self._release_samples
+            if e.ring is None and e.sounds:
+                self._open(e, b0)
+            elif e.ring is not None and not live:
+                r.remove_source(e.name)
+                e.ring = None
+            if e.ring is None:
+                continue
+            block = np.zeros(b1 - b0)
+            for s in e.sounds:
+                s.write(block, b0)
+            idx = np.mod(np.arange(b0, b1) - e.ring_start, RING)
+            e.ring[idx] = block
+        return r.render_block(b1 - b0)
+
+    def step(self) -> np.ndarray:
+        """:meth:`advance` then :meth:`render`: one control step, one block (2, n) Pa."""
+        self.advance()
+        return self.render()
+
+    # -- internals ------------------------------------------------------------------------------
+    def _apply(self, ev: SoundEvent) -> None:
+        e = self._emitters[ev.source]
+        if ev.kind == "alarm_stop":
+            for s in e.sounds:
+                if s.loop and s.stop is None:
+                    s.stop = ev.sample
+            return
+        level = ev.level_db + (self._anchor(e)[1] if e.outside else 0.0)
+        fade = int(np.ceil(STOP_FADE_S * self.sample_rate))
+        e.sounds.append(_Sound(ev.signal, ev.sample, float(db_spl_to_pa(level)), ev.loop, fade))
+        e.silent_from = np.inf
+
+    def _drop_finished(self, now: int) -> None:
+        for e in self._emitters.values():
+            if e.sounds:
+                e.sounds = [s for s in e.sounds if s.end() > now]
+                if not e.sounds:
+                    e.silent_from = now
+
+    def _open(self, e: _EmitterState, b0: int) -> None:
+        e.ring = np.zeros(RING)
+        e.ring_start = b0
+        src = self.renderer.add_source(e.name, e.ring, e.position, level_db=UNIT_LEVEL_DB, start=b0, loop=True)
+        if src.signal is not e.ring:
+            raise ConfigError("the renderer copied an emitter's ring buffer; the coupling needs it to keep the array it is given")
+
+    def _anchor(self, e: _EmitterState) -> tuple[np.ndarray, float]:
+        """Room-frame position (m) an emitter plays from and its level change (dB): for
+        outside emitters, the nearest point inside and minus the loss and spreading to it."""
+        f = self.frame
+        p = f.to_room(self.view.site_position(e.anchor))
+        if not e.outside:
+            return p, 0.0
+        inside = f.nearest_inside(p, self.outside_margin_m)
+        d = float(np.linalg.norm(p - inside))
+        return inside, -self.events.config.transmission_loss_db - 20.0 * np.log10(max(d, 1.0))
+
+    def _sync_poses(self) -> None:
+        """Head and emitter poses from the view, in the room frame, to the renderer."""
+        v, f, r = self.view, self.frame, self.renderer
+        centre, rot = v.head_pose()
+        position, rotation = f.to_room(centre), f.rotation_to_room(rot)
+        # The renderer re-derives its responses when the pose changes; physics jitters the head
+        # by micrometres every step, so only moves beyond HEAD_POSITION_TOL / HEAD_ROTATION_TOL
+        # (far below the renderer's 1/8-sample delay and 0.5 deg direction resolution) are sent.
+        if r is not None and (
+            self._sent_head is None
+            or np.max(np.abs(position - self._sent_head[0])) > HEAD_POSITION_TOL
+            or np.max(np.abs(rotation - self._sent_head[1])) > HEAD_ROTATION_TOL
+        ):
+            r.set_head_pose(position, rotation)
+            self._sent_head = (position, rotation)
+        self.head_position, self.head_rotation = position, rotation
+        for e in self._emitters.values():
+            if not e.sounds and e.ring is None and e.position is not None:
+                continue  # idle and not in the renderer: nothing to keep up to date
+            p = self._anchor(e)[0]
+            if e.position is None or np.linalg.norm(p - e.position) > self.move_threshold_m:
+                e.position = p
+                if r is not None and e.ring is not None:
+                    r.move_source(e.name, p)
+
+    # -- inspection -----------------------------------------------------------------------------
+    def source_positions(self) -> dict[str, np.ndarray]:
+        """Room-frame positions (m) of the emitters that have a renderer source."""
+        return {e.name: e.position.copy() for e in self._emitters.values() if e.ring is not None}
+
+    def emitter_position(self, name: str) -> np.ndarray:
+        """Room-frame position (m) an emitter plays from now (outside ones: inside the wall)."""
+        if name not in self._emitters:
+            raise ConfigError(f"this scene has no emitter {name!r}; emitters: {sorted(self._emitters)}")
+        return self._anchor(self._emitters[name])[0]
