@@ -22,6 +22,16 @@ def add_parsers(sub) -> None:
     s.add_argument("--height", type=int, default=800, help="image height in pixels, 16-4096 (default 800)")
     s.set_defaults(func=cmd_snapshot)
 
+    pl = sub.add_parser(
+        "play",
+        help="open a rerun recording in the viewer",
+        description="Opens FILE.rrd in rerun's viewer; without a display, prints how to view it (or use --web to "
+        "serve rerun's web viewer).",
+    )
+    pl.add_argument("file", type=Path, help="a recording, e.g. runs/demo.rrd")
+    pl.add_argument("--web", action="store_true", help="serve rerun's web viewer on http://localhost:9090 instead")
+    pl.set_defaults(func=cmd_play)
+
 
 def cmd_snapshot(args) -> int:
     from acoustic_sim.world.snapshot import snapshot
@@ -29,3 +39,9 @@ def cmd_snapshot(args) -> int:
     out = snapshot(args.scene, args.out, width=args.width, height=args.height)
     print(json.dumps({"scene": args.scene, "out": str(out), "width": args.width, "height": args.height}))
     return 0
+
+
+def cmd_play(args) -> int:
+    from acoustic_sim.viz import play
+
+    return play(args.file, web=args.web)
