@@ -113,6 +113,36 @@ def build_parser() -> argparse.ArgumentParser:
     br.add_argument("--out", type=Path, default=Path("bench/render.json"), help="output JSON (default bench/render.json)")
     br.add_argument("--quick", action="store_true", help="shorter runs (for tests): numbers are noisier")
     br.set_defaults(func=cmd_bench_render)
+    bw = bsub.add_parser(
+        "world",
+        help="physics and coupling time per 16 ms control step, cabin and room scenes",
+        description="Measures world_step_ms for the cabin and room scenes while the robot moves as in a task: "
+        "8 physics steps of 2 ms plus the coupling (mechanism traces, sound events, ear and source poses in "
+        "the acoustic room's frame, ego-noise level), without audio rendering, per 16 ms control step. "
+        "Target: at most 1 ms.",
+    )
+    bw.add_argument("--out", type=Path, default=Path("bench/world.json"), help="output JSON (default bench/world.json)")
+    bw.add_argument("--quick", action="store_true", help="shorter runs (for tests): numbers are noisier")
+    bw.set_defaults(func=cmd_bench, bench_module="bench_world")
+    bv = bsub.add_parser(
+        "viz",
+        help="rerun logging cost: ms per frame and MB per minute",
+        description="Records 60 s of a cabin episode (scene, percepts, spectrograms, audio, 320x240 eye camera) "
+        "to an .rrd; writes log_ms_per_frame and rrd_mb_per_min. Targets: 1 ms per frame, 30 MB per minute.",
+    )
+    bv.add_argument("--out", type=Path, default=Path("bench/viz.json"), help="output JSON (default bench/viz.json)")
+    bv.add_argument("--quick", action="store_true", help="10 s instead of 60 s")
+    bv.set_defaults(func=cmd_bench, bench_module="bench_viz")
+    bp = bsub.add_parser(
+        "pipeline",
+        help="auditory pipeline time per ear frame and SSDENet training time",
+        description="Measures frame_ms_median (one ear frame, both ears: front end, MelCNN and SSDENet over the "
+        "valid bins, paper profile, 2 threads) on a reverse alarm in the car cabin, ssdenet_train_s (paper "
+        "profile, trained afresh) and peak memory. Targets: 4 ms per frame, 600 s of training.",
+    )
+    bp.add_argument("--out", type=Path, default=Path("bench/pipeline.json"), help="output JSON (default bench/pipeline.json)")
+    bp.add_argument("--quick", action="store_true", help="fast profile and short runs (for tests)")
+    bp.set_defaults(func=cmd_bench, bench_module="bench_pipeline")
 
     d = sub.add_parser(
         "demo",
@@ -123,6 +153,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", type=Path, default=Path("runs"), help="output folder (default runs/)")
     d.add_argument("--seed", type=int, default=0, help="random seed")
     d.set_defaults(func=cmd_demo)
+
+    from acoustic_sim import cli_auditory, cli_world
+
+    cli_auditory.add_parsers(sub)
+    cli_world.add_parsers(sub)
     return parser
 
 
@@ -169,9 +204,15 @@ def cmd_measure_hrtf(args) -> int:
 
 
 def cmd_bench_render(args) -> int:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from benchmarks.bench_render import run
+    args.bench_module = "bench_render"
+    return cmd_bench(args)
 
+
+def cmd_bench(args) -> int:
+    import importlib
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    run = importlib.import_module(f"benchmarks.{args.bench_module}").run
     result = run(quick=args.quick)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")

@@ -17,3 +17,19 @@ def spherical() -> HRTF:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def model_cache(tmp_path_factory):
+    """Trained models go to a fresh folder per test session (CI starts without a cache; a
+    developer's own cache is never read or overwritten by the tests)."""
+    import os
+
+    path = tmp_path_factory.mktemp("model-cache")
+    old = os.environ.get("ACOUSTIC_SIM_CACHE")
+    os.environ["ACOUSTIC_SIM_CACHE"] = str(path)
+    yield path
+    if old is None:
+        os.environ.pop("ACOUSTIC_SIM_CACHE", None)
+    else:
+        os.environ["ACOUSTIC_SIM_CACHE"] = old

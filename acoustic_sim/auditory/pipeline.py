@@ -1,0 +1,305 @@
+"""The auditory pipeline: audio blocks in, percepts out (DESIGN.md section 1).
+
+Per ear frame (62.5 Hz on the sample clock)::
+
+    X_l, X_r   = front end (2048-point Hamming rFFT)               frontend.EarFrontEnd
+    p_l, p_r   = MelCNN(log-mel of the last 25 frames, per ear)    melcnn.MelCNN
+    p          = (V_l p_l + V_r p_r) / (V_l + V_r)                 melcnn.fuse
+    detected   = classes with p >= threshold
+    valid_c    = bins with power > factor x noise, within the characteristic bins of c
+    P_c(d)     = sum over valid_c of SSDENet_i(ILD, IPD)           ssdenet.SSDENetBank
+    estimate_c = argmax_d P_c(d)
+
+The noise that the validity threshold refers to is the robot's own driving noise (the
+paper: 10 times its spectrum per bin). Without a robot (a WAV file), the default is the
+microphone's self-noise floor; a task sets the ego-noise spectrum with
+:meth:`AuditoryPipeline.set_noise_power`.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from acoustic_sim.acoustics.hrtf import HRTF
+from acoustic_sim.acoustics.microphone import Microphone
+from acoustic_sim.auditory.baselines import GccPhat, Music
+from acoustic_sim.auditory.features import MEL_FRAMES, MelHistory, ear_volume, ild_ipd, log_mel_patches
+from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze
+from acoustic_sim.auditory.melcnn import MelCNN, fuse
+from acoustic_sim.auditory.percept import DirectionEstimate, Percept
+from acoustic_sim.auditory.ssdenet import SSDENetBank, noise_power_spectrum, valid_bins
+from acoustic_sim.directions import DirectionGrid
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import SAMPLE_RATE, sph_to_vec, vec_to_sph
+
+METHODS = ("ssdenet", "music", "gcc-phat")
+"""Localization methods of :meth:`AuditoryPipeline.localize`."""
+
+VALIDITY_FACTOR = 10.0
+"""The paper's threshold: a bin is valid when its power exceeds 10 x the noise's."""
+
+
+def microphone_noise_power(seconds: float = 1.0) -> np.ndarray:
+    """Mean power per ear and bin (2, 1025) of the microphone's self-noise in silence.
+
+    Full-scale units, as the front end sees them; the default noise reference when no
+    driving-noise spectrum is known. Deterministic (its own fixed seed: it is a property of
+    the microphone, not of an episode).
+    """
+    mic = Microphone(rng=np.random.default_rng(20220101))
+    return noise_power_spectrum(analyze(mic(np.zeros((2, int(seconds * SAMPLE_RATE))))).spectra[3:])
+
+
+def _estimate(existence: np.ndarray, grid: DirectionGrid, n_bins: int, method: str) -> DirectionEstimate:
+    k = int(np.argmax(existence))
+    top = float(existence[k])
+    confidence = 0.0 if top <= 0 else float(np.clip((top - float(existence.mean())) / top, 0.0, 1.0))
+    return DirectionEstimate(
+        vector=grid.vectors[k].copy(), azimuth_deg=float(grid.azimuth_deg[k]), elevation_deg=float(grid.elevation_deg[k]),
+        existence=np.asarray(existence, np.float32), confidence=confidence, n_bins=int(n_bins), method=method,
+    )
+
+
+class AuditoryPipeline:
+    """The ear unit's board plus the paper's "central nervous system".
+
+    Parameters
+    ----------
+    hrtf : HRTF
+        The ears the networks were trained for (and MUSIC's steering vectors).
+    grid : DirectionGrid
+        Output directions.
+    ssdenet : SSDENetBank
+    melcnn : MelCNN
+    noise_power : array_like, optional
+        (2, 1025) or (1025,) power per bin of the robot's driving noise in full-scale units
+        (default: :func:`microphone_noise_power`).
+    threshold : float
+        Detection threshold on the fused class probability, 0..1 (default 0.5).
+    factor : float
+        Validity factor over the noise power (the paper: 10).
+
+    Use :meth:`load` to get one with trained (cached) models.
+    """
+
+    def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
+                 threshold: float = 0.5, factor: float = VALIDITY_FACTOR) -> None:
+        if ssdenet.hrtf_ident != hrtf.ident:
+            raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
+                              f"not for {hrtf.name!r} ({hrtf.ident})")
+        if ssdenet.grid.ident != grid.ident:
+            raise ConfigError(f"the SSDENet bank outputs grid {ssdenet.grid.ident}, not {grid.ident}")
+        if not (np.isfinite(threshold) and 0.0 < threshold < 1.0):
+            raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
+        if not (np.isfinite(factor) and factor > 0):
+            raise ConfigError(f"factor must be > 0, got {factor}")
+        self.hrtf = hrtf
+        self.grid = grid
+        self.ssdenet = ssdenet
+        self.melcnn = melcnn
+        self.classes = tuple(melcnn.classes)
+        self.threshold = float(threshold)
+        self.factor = float(factor)
+        self.set_noise_power(microphone_noise_power() if noise_power is None else noise_power)
+        bins = np.asarray(ssdenet.bins)
+        # Class masks restricted to the bank's bins: (C, n_bank) bool.
+        self._class_masks = np.zeros((len(self.classes), bins.size), bool)
+        for c, name in enumerate(self.classes):
+            cb = melcnn.characteristic_bins.get(name)
+            self._class_masks[c] = np.isin(bins, cb) if cb is not None and np.size(cb) else True
+        self._music: Music | None = None
+        self._gcc: GccPhat | None = None
+        self.frontend = EarFrontEnd()
+        self.mel = MelHistory()
+        self.volumes: deque = deque(maxlen=MEL_FRAMES)
+
+    @classmethod
+    def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
+             threshold: float = 0.5, progress: bool = True) -> AuditoryPipeline:
+        """A pipeline with the cached models of ``profile`` (trained first where missing).
+
+        Parameters
+        ----------
+        hrtf : str or HRTF
+            ``kemar``, ``spherical`` or a SOFA path.
+        profile : str
+            Model size: ``paper`` or ``fast`` (tests).
+        melcnn_profile : str, optional
+            MelCNN profile if it differs from ``profile``.
+        """
+        ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
+        grid = DirectionGrid.paper(ears)
+        bank = SSDENetBank.load_or_train(ears, grid, profile, progress=progress)
+        cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
+        return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold)
+
+    # -- state --------------------------------------------------------------------------------
+    def set_noise_power(self, noise_power) -> None:
+        """The driving-noise power per bin, (2, 1025) or (1025,) full-scale units, >= 0."""
+        n = np.asarray(noise_power, float)
+        try:
+            n = np.broadcast_to(n, (2, N_BINS)).copy()
+        except ValueError:
+            raise ConfigError(f"noise_power must have shape (2, {N_BINS}) or ({N_BINS},), got {n.shape}") from None
+        if not np.all(np.isfinite(n)) or np.any(n < 0):
+            raise ConfigError("noise_power must be finite and >= 0")
+        self.noise_power = n
+
+    def reset(self) -> None:
+        """Forget all audio (a new episode): clock back to sample 0."""
+        self.frontend.reset()
+        self.mel.reset()
+        self.volumes.clear()
+
+    # -- streaming ----------------------------------------------------------------------------
+    def process(self, block) -> list[Percept]:
+        """Push a (2, n) block of digital ear samples; one Percept per completed ear frame."""
+        frames = self.frontend.push(block)
+        return [self._frame(int(k), float(t), x) for k, t, x in zip(frames.index, frames.time_s, frames.spectra)]
+
+    def _frame(self, k: int, t: float, x: np.ndarray) -> Percept:
+        self.mel.push(x)
+        self.volumes.append(ear_volume(x))
+        patch = self.mel.patch()
+        volume = np.mean(np.asarray(self.volumes), axis=0)
+        p_ears = self.melcnn.predict(patch)  # (2, C)
+        probs = fuse(p_ears[0], p_ears[1], volume[0], volume[1]).astype(np.float32)
+        order = np.argsort(-probs, kind="stable")
+        detected = tuple(self.classes[i] for i in order if probs[i] >= self.threshold)
+        directions = {}
+        if detected:
+            directions = self._directions(x, [self.classes.index(c) for c in detected])
+        return Percept(frame=k, time_s=t, classes=self.classes, probabilities=probs, detected=detected,
+                       directions=directions, mel=patch[:, -1, :].copy(), volume=volume)
+
+    def _directions(self, x: np.ndarray, class_indices: list[int]) -> dict:
+        """SSDENet estimates for the given classes from one frame (2, 1025)."""
+        bins = self.ssdenet.bins
+        valid = valid_bins(x, self.noise_power, self.factor)[bins]  # (n_bank,)
+        masks = self._class_masks[class_indices] & valid[None, :]  # (c, n_bank)
+        used = np.flatnonzero(masks.any(axis=0))
+        out = {}
+        if used.size == 0:
+            return out
+        sel = x[:, bins[used]]
+        subset = None if used.size == bins.size else used
+        maps = self.ssdenet.existence(ild_ipd(sel[0], sel[1]), subset=subset)  # (n_used, D)
+        for row, c in zip(masks[:, used], class_indices):
+            if row.any():
+                out[self.classes[c]] = _estimate(maps[row].sum(axis=0), self.grid, int(row.sum()), "ssdenet")
+        return out
+
+    # -- whole recordings ---------------------------------------------------------------------
+    def _check_method(self, method: str) -> None:
+        if method not in METHODS:
+            raise ConfigError(f"unknown localization method {method!r}; valid: {', '.join(METHODS)}")
+
+    def localize(self, audio, *, method: str = "ssdenet", sound: str | None = None, window: int = MEL_FRAMES):
+        """Direction estimates of a whole (2, n) recording.
+
+        Parameters
+        ----------
+        audio : array_like (2, n)
+            Digital ear samples (full scale, as ``render`` writes).
+        method : str
+            ``ssdenet`` (the paper's), ``music`` or ``gcc-phat`` (baselines).
+        sound : str, optional
+            Restrict SSDENet to this class's characteristic bins.
+        window : int
+            Frames per running estimate (the per-frame results use the last ``window``
+            frames; MUSIC needs several frames for its correlation matrix).
+
+        Returns
+        -------
+        per_frame : list of (time_s, DirectionEstimate or None)
+        overall : DirectionEstimate or None
+            From all frames together; None when nothing could be estimated (silence).
+        """
+        self._check_method(method)
+        frames = analyze(audio)
+        if len(frames) == 0:
+            raise ConfigError(f"the recording is shorter than one ear frame ({int(np.ceil(SAMPLE_RATE / 62.5))} samples)")
+        x = frames.spectra
+        if method == "ssdenet":
+            valid = valid_bins(x, self.noise_power, self.factor)
+            if sound is not None:
+                if sound not in self.classes:
+                    raise ConfigError(f"unknown sound class {sound!r}; valid: {', '.join(self.classes)}")
+                mask = np.zeros(N_BINS, bool)
+                mask[self.ssdenet.bins[self._class_masks[self.classes.index(sound)]]] = True
+                valid = valid & mask
+            maps, n_valid = self.ssdenet.frame_maps(x, valid)
+            csum = np.cumsum(maps, axis=0)
+            nsum = np.cumsum(n_valid)
+            per_frame = []
+            for i, t in enumerate(frames.time_s):
+                lo = i - window
+                m = csum[i] - (csum[lo] if lo >= 0 else 0.0)
+                nb = int(nsum[i] - (nsum[lo] if lo >= 0 else 0))
+                per_frame.append((float(t), _estimate(m, self.grid, nb, method) if nb else None))
+            overall = _estimate(maps.sum(axis=0), self.grid, int(n_valid.sum()), method) if n_valid.sum() else None
+            return per_frame, overall
+        est = self._baseline(method)
+        per_frame = []
+        for i, t in enumerate(frames.time_s):
+            per_frame.append((float(t), est(x[max(0, i - window + 1) : i + 1])))
+        return per_frame, est(x)
+
+    def _baseline(self, method: str):
+        if method == "music":
+            if self._music is None:
+                self._music = Music(self.hrtf, self.grid)
+            music = self._music
+
+            def run(x):
+                r = music.analyze(x)
+                if r.silent:
+                    return None
+                return _estimate(np.asarray(r.spectrum, np.float32), self.grid, len(r.bins), "music")
+
+            return run
+        if self._gcc is None:
+            self._gcc = GccPhat(self.hrtf)
+        gcc = self._gcc
+
+        def run(x):
+            r = gcc.analyze(x)
+            if r.silent:
+                return None
+            v = sph_to_vec(r.azimuth_deg, 0.0)
+            az, el = vec_to_sph(v)
+            return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el), existence=np.zeros(0, np.float32),
+                                     confidence=1.0, n_bins=0, method="gcc-phat")
+
+        return run
+
+    def detect(self, audio):
+        """Class probabilities of a whole (2, n) recording: :func:`detect_recording`."""
+        return detect_recording(self.melcnn, audio)
+
+
+def detect_recording(melcnn: MelCNN, audio):
+    """Class probabilities of a whole (2, n) recording.
+
+    Returns
+    -------
+    times : numpy.ndarray (K,)
+        Frame times (s).
+    probabilities : numpy.ndarray float32 (K, C)
+        Fused probabilities per frame (each from the 25 frames ending there).
+    overall : numpy.ndarray float32 (C,)
+        The maximum over frames: the probability that each class occurs in the file.
+    """
+    frames = analyze(audio)
+    if len(frames) == 0:
+        raise ConfigError(f"the recording is shorter than one ear frame ({int(np.ceil(SAMPLE_RATE / 62.5))} samples)")
+    patches = log_mel_patches(frames.spectra)
+    vol = ear_volume(frames.spectra)  # (K, 2)
+    kernel = np.ones(MEL_FRAMES) / MEL_FRAMES
+    # Mean volume over each patch's frames (frames before the start count as silent).
+    vol = np.stack([np.convolve(vol[:, e], kernel)[: len(vol)] for e in range(2)], axis=1)
+    probs = np.concatenate([melcnn.detect(patches[i : i + 256], vol[i : i + 256]) for i in range(0, len(patches), 256)])
+    probs = probs.astype(np.float32)
+    return frames.time_s, probs, probs.max(axis=0)

@@ -1,0 +1,174 @@
+"""REPORT.md and the localization figures of ``eval paper``, generated from its JSON files.
+
+The README's "Paper results" section is the report's tables, copied by
+``acoustic-sim eval readme`` (:func:`update_readme`) between the markers
+``<!-- paper:begin -->`` and ``<!-- paper:end -->``; a test checks that they agree with
+the committed ``results/paper`` files, so no number is typed by hand.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from acoustic_sim.errors import ConfigError  # noqa: E402
+
+METHODS = ("ssdenet", "music", "gcc_phat")
+LABELS = {"ssdenet": "SSDENet", "music": "MUSIC", "gcc_phat": "GCC-PHAT", "gcc-phat": "GCC-PHAT"}
+BEGIN, END = "<!-- paper:begin -->", "<!-- paper:end -->"
+
+
+def _load(out: Path, name: str) -> dict:
+    path = out / name
+    if not path.is_file():
+        raise ConfigError(f"{path} is missing: run `acoustic-sim eval paper --out {out}` first")
+    return json.loads(path.read_text())
+
+
+def _fmt(v, digits: int = 1) -> str:
+    return "n/a" if v is None else f"{v:.{digits}f}"
+
+
+def tables(out) -> str:
+    """The Markdown tables of a finished run (the body of REPORT.md and the README section)."""
+    out = Path(out)
+    pinna, ild, loc, det = (_load(out, n) for n in ("pinna.json", "hrtf_ild_ipd.json", "localization.json", "detection.json"))
+    lines = []
+    w, wo = pinna["with_pinna"], pinna["without_pinna"]
+    lines += [
+        "**Pinna (median plane, left ear).** "
+        f"With pinnae ({w['hrtf']}): a notch at {w['notch_count']} of {len(w['notch_hz'])} elevations, "
+        f"{_fmt(w['notch_range_hz'][0], 0) if w['notch_range_hz'] else 'n/a'}-"
+        f"{_fmt(w['notch_range_hz'][1], 0) if w['notch_range_hz'] else 'n/a'} Hz, response spread "
+        f"{w['elevation_spread_db']} dB over elevation; without ({wo['hrtf']}): {wo['notch_count']} notches, "
+        f"spread {wo['elevation_spread_db']} dB.",
+        "",
+        "| ILD range (natural log) | " + " | ".join(f"{r['frequency_hz']:.1f} Hz" for r in ild["ild_range"]) + " |",
+        "|---|" + "---|" * len(ild["ild_range"]),
+        "| ours (max abs ILD) | " + " | ".join(f"{r['ours']:.2f}" for r in ild["ild_range"]) + " |",
+        "| paper | " + " | ".join("-" if r["paper"] is None else f"{r['paper']:.2f}" for r in ild["ild_range"]) + " |",
+        "",
+        f"**Localization in simulation** (mean angular error in deg over {loc['directions']} directions, "
+        f"{loc['hrtf']}, `{loc['profile']}` models):",
+        "",
+        "| signal | f0 (Hz) | SSDENet | MUSIC | GCC-PHAT |",
+        "|---|---|---|---|---|",
+    ]
+    for row in loc["simulation"]:
+        f0 = "-" if row["f0_hz"] is None else f"{row['f0_hz']:.0f}"
+        lines.append(f"| {row['signal']} | {f0} | " + " | ".join(_fmt(row[f"{m}_deg"]) for m in METHODS) + " |")
+    room = loc["room"]
+    keys = list(room["horizontal_mean_deg"])
+    lines += [
+        "",
+        f"**Localization in the {room['room']} room** (white noise {room['level_db_spl'][0]:.0f}-"
+        f"{room['level_db_spl'][1]:.0f} dB SPL at {room['distance_m']} m; models from {room['trained_on']}):",
+        "",
+        "| metric | " + " | ".join(LABELS.get(k, k) for k in keys) + " |",
+        "|---|" + "---|" * len(keys),
+    ]
+    for metric, digits in (("horizontal_mean_deg", 1), ("median_mean_deg", 1), ("lr_accuracy", 3), ("tb_accuracy", 3),
+                           ("front_back_confusion", 3)):
+        lines.append(f"| {metric} | " + " | ".join(_fmt(room[metric][k], digits) for k in keys) + " |")
+    lines += [
+        "",
+        f"**Detection** (MelCNN, `{det['profile']}`, {det['n_examples']} held-out windows with mixtures, noise and "
+        f"reverberation): macro F1 **{det['f1_macro']:.3f}** (paper: {det['paper_f1']}).",
+        "",
+        "| class | precision | recall | F1 | support |",
+        "|---|---|---|---|---|",
+    ]
+    for c, v in det["per_class"].items():
+        lines.append(f"| {c} | {v['precision']:.3f} | {v['recall']:.3f} | {v['f1']:.3f} | {v['support']} |")
+    return "\n".join(lines) + "\n"
+
+
+def localization_figures(out) -> list[str]:
+    """Bar chart of the simulation errors and per-angle room errors; returns the file names."""
+    out = Path(out)
+    loc = _load(out, "localization.json")
+    rows = loc["simulation"]
+    names = [r["signal"] if r["f0_hz"] is None else f"{r['signal']}\n{r['f0_hz']:.0f}" for r in rows]
+    fig, ax = plt.subplots(figsize=(11, 3.6))
+    x = np.arange(len(rows))
+    for i, m in enumerate(METHODS):
+        ax.bar(x + (i - 1) * 0.27, [r[f"{m}_deg"] for r in rows], width=0.27, label=LABELS[m])
+    ax.axhline(90, color="grey", lw=0.8, ls=":", label="chance (90 deg)")
+    ax.set_xticks(x, names, fontsize=7)
+    ax.set_ylabel("mean angular error (deg)")
+    ax.set_title(f"Localization in simulation ({loc['hrtf']}, {loc['directions']} directions)")
+    ax.legend(fontsize=8, ncols=4)
+    fig.tight_layout()
+    fig.savefig(out / "localization_simulation.png", dpi=110)
+    plt.close(fig)
+
+    room = loc["room"]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4))
+    for ax, plane, coord in ((axes[0], "horizontal", "azimuth_deg"), (axes[1], "median", "elevation_deg")):
+        for m, per in room[f"{plane}_per_angle"].items():
+            if plane == "median":
+                xs = [p["elevation_deg"] if abs(p["azimuth_deg"]) < 90 else 180 - p["elevation_deg"] for p in per]
+            else:
+                xs = [p[coord] for p in per]
+            order = np.argsort(xs)
+            ax.plot(np.asarray(xs)[order], np.asarray([p["error_deg"] for p in per])[order], "o-", ms=3, label=LABELS.get(m, m))
+        ax.set_xlabel("azimuth (deg)" if plane == "horizontal" else "polar angle (deg, 0 front, 90 up, 180 back)")
+        ax.set_ylabel("error (deg)")
+        ax.set_title(f"{plane} plane")
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Localization in the {room['room']} room")
+    fig.tight_layout()
+    fig.savefig(out / "localization_room.png", dpi=110)
+    plt.close(fig)
+    return ["localization_simulation.png", "localization_room.png"]
+
+
+def write_report(out) -> Path:
+    """Write the figures and REPORT.md of a finished run; returns the report's path."""
+    out = Path(out)
+    figures = localization_figures(out)
+    summary = _load(out, "summary.json")
+    body = [
+        "# Omura et al. 2022, reproduced in simulation",
+        "",
+        f"Generated by `acoustic-sim eval paper --out {out}{' --quick' if summary['quick'] else ''}` "
+        f"(seed {summary['seed']}, ears: {summary['hrtf']}, models: `{summary['profile']}`; "
+        f"{summary['timings']['total_s']:.0f} s). Do not edit: rerun the command.",
+        "",
+        tables(out),
+        "![pinna](pinna.png)",
+        "",
+        "![ILD](hrtf_ild.png)",
+        "",
+        "![IPD](hrtf_ipd.png)",
+        "",
+        *[f"![{f[:-4]}]({f})\n" for f in figures],
+    ]
+    path = out / "REPORT.md"
+    path.write_text("\n".join(body))
+    return path
+
+
+def readme_section(results_dir, image_prefix: str) -> str:
+    """The README's generated section: the tables and the figures of ``results_dir``."""
+    figs = ["pinna.png", "hrtf_ild.png", "localization_simulation.png", "localization_room.png"]
+    return "\n".join([BEGIN, tables(results_dir), *[f"![{f[:-4]}]({image_prefix}/{f})\n" for f in figs], END])
+
+
+def update_readme(readme, results_dir, image_prefix: str = "results/paper") -> bool:
+    """Replace the README's generated section; returns True when the file changed."""
+    readme = Path(readme)
+    text = readme.read_text()
+    if BEGIN not in text or END not in text:
+        raise ConfigError(f"{readme} has no {BEGIN} ... {END} section to fill")
+    start, stop = text.index(BEGIN), text.index(END) + len(END)
+    new = text[:start] + readme_section(results_dir, image_prefix) + text[stop:]
+    if new != text:
+        readme.write_text(new)
+    return new != text

@@ -1,0 +1,155 @@
+"""The streaming auditory pipeline, its CLI (localize, detect) and `eval paper --quick`."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from acoustic_sim.acoustics import sounds
+from acoustic_sim.acoustics.microphone import Microphone
+from acoustic_sim.acoustics.renderer import BinauralRenderer
+from acoustic_sim.acoustics.room import room_preset
+from acoustic_sim.auditory.percept import Percept
+from acoustic_sim.auditory.pipeline import AuditoryPipeline
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import frame_end_sample, rotation_zyx, sph_to_vec
+
+
+@pytest.fixture(scope="module")
+def pipe(kemar):
+    return AuditoryPipeline.load(kemar, "fast", progress=False)
+
+
+def _render(kemar, sound, azimuth, *, room="anechoic", seconds=1.0, seed=0, level=80.0, distance=1.5):
+    rng = np.random.default_rng(seed)
+    space = room_preset(room)
+    head = np.asarray(space.listener, float)
+    r = BinauralRenderer(kemar, space, rng=rng)
+    r.set_head_pose(head, rotation_zyx(0.0))
+    sig = sounds.white_noise(seconds, rng) if sound == "white_noise" else sounds.generate(sound, rng, seconds=seconds)
+    r.add_source("s", sig, head + distance * sph_to_vec(azimuth, 0.0), level_db=level, start=0)
+    return Microphone(rng=rng)(r.render(seconds))
+
+
+def test_process_gives_one_percept_per_frame_on_the_clock(pipe, kemar):
+    pipe.reset()
+    audio = _render(kemar, "reverse_alarm", 0.0, room="car_cabin", seconds=1.2, distance=0.8)
+    percepts = []
+    for k in range(1, 76):
+        start, end = frame_end_sample(k - 1), frame_end_sample(k)
+        out = pipe.process(audio[:, start:end])
+        assert len(out) == 1
+        percepts += out
+    assert all(isinstance(p, Percept) for p in percepts)
+    assert [p.frame for p in percepts] == list(range(1, 76))
+    assert percepts[-1].time_s == pytest.approx(frame_end_sample(75) / 44100)
+    for p in percepts:
+        assert p.probabilities.shape == (6,) and np.all((p.probabilities >= 0) & (p.probabilities <= 1))
+        for c, d in p.directions.items():
+            assert c in p.detected
+            assert np.linalg.norm(d.vector) == pytest.approx(1.0)
+            assert d.existence.shape == (len(pipe.grid),) and 0 <= d.confidence <= 1 and d.n_bins > 0
+    json.dumps(percepts[-1].to_json())
+
+
+@pytest.mark.xfail(strict=True, reason="known defect (issue 3, open): the fast MelCNN does not detect the alarm yet "
+                   "(fused probability 0.21 in session 2); strict, so the suite fails once it is fixed")
+def test_fast_pipeline_detects_the_alarm(pipe, kemar):
+    pipe.reset()
+    percepts = pipe.process(_render(kemar, "reverse_alarm", 0.0, room="car_cabin", seconds=1.2, distance=0.8))
+    # The alarm is on for most of the recording: the detector finds it in the late frames.
+    assert np.mean([p.probability("reverse_alarm") for p in percepts[40:]]) > 0.5
+
+
+def test_silence_gives_percepts_without_directions(pipe):
+    pipe.reset()
+    out = pipe.process(np.zeros((2, 44100)))
+    assert len(out) == 62
+    assert all(np.all(np.isfinite(p.probabilities)) for p in out)
+    assert all(not p.directions for p in out)
+
+
+def test_localize_white_noise_all_methods(pipe, kemar):
+    audio = _render(kemar, "white_noise", 60.0, seconds=0.6)
+    per_frame, overall = pipe.localize(audio, method="ssdenet")
+    assert len(per_frame) == 37 and overall is not None
+    # fast profile, anechoic broadband source (the ssdenet tests pin 20 deg over many directions)
+    assert np.degrees(np.arccos(np.clip(overall.vector @ sph_to_vec(60.0, 0.0), -1, 1))) < 25.0
+    _, music = pipe.localize(audio, method="music")
+    _, gcc = pipe.localize(audio, method="gcc-phat")
+    assert music.azimuth_deg > 0 and gcc.azimuth_deg > 20  # left hemisphere
+    with pytest.raises(ConfigError, match="unknown localization method"):
+        pipe.localize(audio, method="beamforming")
+    with pytest.raises(ConfigError, match="shorter than one ear frame"):
+        pipe.localize(np.zeros((2, 100)))
+    with pytest.raises(ConfigError, match="unknown sound class"):
+        pipe.localize(audio, sound="trumpet")
+
+
+def test_noise_power_is_validated(pipe):
+    with pytest.raises(ConfigError, match="noise_power"):
+        pipe.set_noise_power(np.ones(7))
+    with pytest.raises(ConfigError, match="finite"):
+        pipe.set_noise_power(np.full(1025, -1.0))
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "acoustic_sim.cli", *args], check=False, capture_output=True, text=True, timeout=600)
+
+
+def test_cli_localize_and_detect_print_json_lines(tmp_path, kemar):
+    wav = tmp_path / "noise.wav"
+    r = _cli("render", "--room", "anechoic", "--sound", "white_noise", "--azimuth", "-90", "--seconds", "0.5", "--out", str(wav))
+    assert r.returncode == 0, r.stderr
+    r = _cli("localize", str(wav), "--profile", "fast")
+    assert r.returncode == 0, r.stderr
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert rows[-1]["overall"] is True and rows[-1]["azimuth_deg"] < 0
+    assert all({"t", "azimuth_deg", "elevation_deg"} <= set(row) for row in rows[:-1])
+    r = _cli("localize", str(wav), "--profile", "fast", "--method", "gcc-phat")
+    assert r.returncode == 0 and json.loads(r.stdout.splitlines()[-1])["azimuth_deg"] < -45
+    r = _cli("detect", str(wav), "--profile", "fast")
+    assert r.returncode == 0, r.stderr
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert rows[-1]["overall"] is True and set(sounds.SOUND_CLASSES) <= set(rows[-1])
+    bad = tmp_path / "mono.wav"
+    import soundfile as sf
+
+    sf.write(bad, np.zeros(1000, np.float32), 44100)
+    r = _cli("localize", str(bad), "--profile", "fast")
+    assert r.returncode == 2 and "2 channels" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_cli_refuses_a_checkpoint_of_another_hrtf(tmp_path, spherical):
+    from acoustic_sim.auditory.ssdenet import SSDENetBank
+    from acoustic_sim.directions import DirectionGrid
+
+    ckpt = tmp_path / "sphere.pt"
+    SSDENetBank.rebuild(spherical, DirectionGrid.paper(spherical), "fast", progress=False, path=ckpt)
+    wav = tmp_path / "n.wav"
+    assert _cli("render", "--sound", "white_noise", "--seconds", "0.3", "--out", str(wav)).returncode == 0
+    r = _cli("localize", str(wav), "--hrtf", "kemar", "--ssdenet", str(ckpt))
+    assert r.returncode == 2, r.stdout
+    assert "HRTF" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
+    out = tmp_path / "paper"
+    r = _cli("eval", "paper", "--quick", "--out", str(out))
+    assert r.returncode == 0, r.stderr[-2000:]
+    for name in ("pinna.json", "hrtf_ild_ipd.json", "localization.json", "detection.json", "REPORT.md", "pinna.png",
+                 "hrtf_ild.png", "hrtf_ipd.png", "localization_simulation.png", "localization_room.png"):
+        assert (out / name).is_file(), name
+    loc = json.loads((out / "localization.json").read_text())
+    assert len(loc["simulation"]) == 13
+    for row in loc["simulation"]:
+        assert {"signal", "f0_hz", "ssdenet_deg", "music_deg", "gcc_phat_deg"} <= set(row)
+        assert all(0 <= row[k] <= 180 for k in ("ssdenet_deg", "music_deg", "gcc_phat_deg"))
+    room = loc["room"]
+    for key in ("horizontal_mean_deg", "median_mean_deg", "lr_accuracy", "tb_accuracy", "front_back_confusion"):
+        assert set(room[key]) == {"ssdenet", "music", "gcc-phat"}, key
+    det = json.loads((out / "detection.json").read_text())
+    assert 0 <= det["f1_macro"] <= 1 and set(det["per_class"]) == set(sounds.SOUND_CLASSES)
+    assert "| signal |" in (out / "REPORT.md").read_text()
