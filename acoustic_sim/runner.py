@@ -1,0 +1,241 @@
+"""The ``run`` command: episodes of a hearing task with a policy, a summary and ``episodes.json``.
+
+:func:`run_episodes` runs ``episodes`` episodes of a task (``reverse-alarm``,
+``parking-brake``, ``call-response``) with a policy (``scripted``, ``oracle``, ``blind``),
+episode ``i`` with seed ``seed + i``, and writes ``DIR/episodes.json``: one record per
+episode (outcome, success, false release, reaction time, the events) and the summary
+``success_rate``, ``median_reaction_s`` (target sound's start to letting go, or to the
+person in view, over the episodes that have one) and ``false_release_rate`` (episodes in
+which the hand let go before the target sound: on a distractor). A progress bar runs over
+the episodes and a summary table is printed at the end.
+
+Hook for recorders: ``step_callback(env, episode, step, obs, reward, terminated, truncated,
+info)`` is called after every reset (``step`` 0, reward 0) and every step; the env exposes
+``last_percept``, ``last_audio`` and ``coupling`` for what a recording needs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from acoustic_sim.errors import ConfigError
+
+TASK_NAMES = ("reverse-alarm", "parking-brake", "call-response")
+"""Task names of the command line."""
+
+POLICY_NAMES = ("scripted", "oracle", "blind")
+"""Policy names of the command line."""
+
+
+def _tasks_module():
+    """The ``tasks`` package (a sibling of ``acoustic_sim`` in the repository)."""
+    root = str(Path(__file__).resolve().parents[1])
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    import tasks
+
+    return tasks
+
+
+def make_env(task: str, *, profile: str = "paper", **kwargs):
+    """A task env by its command-line name (``reverse-alarm``, ...), unwrapped."""
+    if task not in TASK_NAMES:
+        raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASK_NAMES)}")
+    import importlib
+
+    _tasks_module()
+    module, cls = {
+        "reverse-alarm": ("tasks.reverse_alarm", "ReverseAlarmEnv"),
+        "parking-brake": ("tasks.parking_brake", "ParkingBrakeEnv"),
+        "call-response": ("tasks.call_response", "CallResponseEnv"),
+    }[task]
+    return getattr(importlib.import_module(module), cls)(profile=profile, **kwargs)
+
+
+def _number(x):
+    """JSON-friendly float: None for NaN."""
+    if x is None:
+        return None
+    x = float(x)
+    return None if math.isnan(x) else round(x, 4)
+
+
+def run_episode(env, policy, seed: int, *, episode: int = 0, step_callback=None) -> dict:
+    """One episode; returns its record."""
+    t0 = time.perf_counter()
+    obs, info = env.reset(seed=seed)
+    policy.reset(obs, info)
+    if step_callback is not None:
+        step_callback(env, episode, 0, obs, 0.0, False, False, info)
+    events, steps, total = [], 0, 0.0
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(policy.act(obs, info))
+        steps += 1
+        total += reward
+        events += [{k: (round(v, 4) if isinstance(v, float) else v) for k, v in e.items()} for e in info["events"]]
+        if step_callback is not None:
+            step_callback(env, episode, steps, obs, reward, terminated, truncated, info)
+    record = {
+        "episode": episode,
+        "seed": seed,
+        "outcome": info["outcome"],
+        "success": bool(info["success"]),
+        "false_release": bool(info.get("false_release", False)),
+        "reaction_s": _number(info.get("reaction_s")),
+        "target_onset_s": _number(info.get("target_onset_s")),
+        "steps": steps,
+        "episode_s": round(steps / 62.5, 3),
+        "return": total,
+        "events": events,
+        "wall_s": round(time.perf_counter() - t0, 3),
+    }
+    for key in ("release_s", "found_s", "gear", "teeth", "calls", "person_bearing_deg"):
+        if key in info:
+            v = info[key]
+            record[key] = _number(v) if isinstance(v, (float, np.floating)) else (int(v) if isinstance(v, (np.integer,)) else v)
+    return record
+
+
+def summarize(records: list[dict]) -> dict:
+    """success_rate, median_reaction_s, false_release_rate and the outcome counts."""
+    n = len(records)
+    reactions = [r["reaction_s"] for r in records if r["reaction_s"] is not None]
+    outcomes: dict[str, int] = {}
+    for r in records:
+        outcomes[r["outcome"]] = outcomes.get(r["outcome"], 0) + 1
+    steps = sum(r["steps"] for r in records)
+    wall = sum(r["wall_s"] for r in records)
+    return {
+        "episodes": n,
+        "success_rate": round(sum(r["success"] for r in records) / n, 4) if n else None,
+        "median_reaction_s": round(statistics.median(reactions), 4) if reactions else None,
+        "false_release_rate": round(sum(r["false_release"] for r in records) / n, 4) if n else None,
+        "outcomes": outcomes,
+        "env_steps": steps,
+        "wall_s": round(wall, 2),
+        "env_steps_per_s": round(steps / wall, 1) if wall > 0 else None,
+    }
+
+
+def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile: str = "paper", progress: bool = True,
+                 step_callback=None) -> dict:
+    """Run ``episodes`` episodes and write ``out/episodes.json``.
+
+    Parameters
+    ----------
+    task : str
+        ``reverse-alarm``, ``parking-brake`` or ``call-response``.
+    policy : str
+        ``scripted``, ``oracle`` or ``blind``.
+    episodes : int
+        Number of episodes, >= 1; episode ``i`` uses seed ``seed + i``.
+    seed : int
+        Seed of the first episode, >= 0.
+    out : str or pathlib.Path
+        Output folder (created).
+    profile : str
+        Auditory pipeline models: ``paper`` or ``fast``.
+    progress : bool
+        A progress bar over the episodes and the summary table on stdout.
+    step_callback : callable, optional
+        ``f(env, episode, step, obs, reward, terminated, truncated, info)`` (see the module).
+
+    Returns
+    -------
+    dict
+        What ``episodes.json`` holds: ``task``, ``policy``, ``profile``, ``seed``,
+        ``summary`` (success_rate, median_reaction_s, false_release_rate, outcomes, speed)
+        and ``records``.
+    """
+    if policy not in POLICY_NAMES:
+        raise ConfigError(f"unknown policy {policy!r}; valid: {', '.join(POLICY_NAMES)}")
+    if not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ConfigError(f"episodes must be a positive integer, got {episodes!r}")
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    out = Path(out)
+    env = make_env(task, profile=profile)
+    _tasks_module()
+    from policies import make_policy
+
+    pol = make_policy(policy, env)
+    from tqdm.auto import tqdm
+
+    records = []
+    bar = tqdm(range(episodes), desc=f"{task} / {policy}", disable=not progress, dynamic_ncols=True)
+    try:
+        for i in bar:
+            records.append(run_episode(env, pol, int(seed) + i, episode=i, step_callback=step_callback))
+            ok = sum(r["success"] for r in records)
+            bar.set_postfix(success=f"{ok}/{len(records)}", last=records[-1]["outcome"])
+    finally:
+        env.close()
+    result = {"task": task, "policy": policy, "profile": profile, "seed": int(seed), "summary": summarize(records),
+              "records": records}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "episodes.json").write_text(json.dumps(result, indent=1) + "\n")
+    if progress:
+        print(summary_table(result))
+    return result
+
+
+def summary_table(result: dict) -> str:
+    """The summary as a small text table."""
+    s = result["summary"]
+
+    def fmt(v, unit=""):
+        return "-" if v is None else (f"{v:.3f}{unit}" if isinstance(v, float) else f"{v}{unit}")
+
+    rows = [
+        ("task", result["task"]), ("policy", result["policy"]), ("profile", result["profile"]),
+        ("episodes", fmt(s["episodes"])), ("success_rate", fmt(s["success_rate"])),
+        ("median_reaction_s", fmt(s["median_reaction_s"], " s")), ("false_release_rate", fmt(s["false_release_rate"])),
+        ("outcomes", ", ".join(f"{k} {v}" for k, v in sorted(s["outcomes"].items()))),
+        ("env_steps_per_s", fmt(s["env_steps_per_s"])),
+    ]
+    width = max(len(k) for k, _ in rows)
+    line = "-" * (width + 3 + max(len(str(v)) for _, v in rows))
+    return "\n".join([line, *(f"{k:<{width}} | {v}" for k, v in rows), line])
+
+
+# -- command line -----------------------------------------------------------------------------------
+
+
+def add_parsers(sub) -> None:
+    """Add ``run`` to the ``acoustic-sim`` subcommands (``cli.build_parser`` calls this)."""
+    r = sub.add_parser(
+        "run",
+        help="run episodes of a hearing task with a policy; write DIR/episodes.json",
+        description="Runs episodes of a Gymnasium hearing task (reverse-alarm: put the car into reverse and let go "
+        "when the alarm sounds in front; parking-brake: pull the brake and let go when its ratchet sounds on the "
+        "right; call-response: turn toward a person who calls until the person is in view) with a policy "
+        "(scripted: the paper's behaviour from the percepts; oracle: from the ground truth; blind: ignores "
+        "directions). Episode i uses seed SEED + i. Writes DIR/episodes.json (one record per episode, "
+        "success_rate, median_reaction_s, false_release_rate) and prints a summary table.",
+    )
+    r.add_argument("task", choices=TASK_NAMES, help="which task")
+    r.add_argument("--policy", choices=POLICY_NAMES, default="scripted", help="which policy (default scripted)")
+    r.add_argument("--episodes", type=int, default=20, help="number of episodes (default 20)")
+    r.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
+    r.add_argument("--out", type=Path, required=True, help="output folder for episodes.json")
+    r.add_argument("--profile", choices=("paper", "fast"), default="paper",
+                   help="auditory models: paper (default) or fast (small, for tests)")
+    r.set_defaults(func=cmd_run)
+
+
+def cmd_run(args) -> int:
+    if args.episodes < 1:
+        raise ConfigError(f"--episodes must be at least 1, got {args.episodes}")
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile)
+    print(f"wrote {args.out / 'episodes.json'}")
+    return 0

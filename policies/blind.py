@@ -1,0 +1,60 @@
+"""The blind policy: hears the classes but ignores their directions.
+
+It lets go on any reverse alarm (ReverseAlarm) or any ratchet-like click (ParkingBrake),
+with the same evidence rule as ``scripted`` (``votes`` of the last ``window`` frames) but
+without the direction test, so the distractors bite: its false releases measure what
+hearing the direction is worth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from policies.scripted import ScriptedParkingBrake, ScriptedReverseAlarm, TurnPolicy, heard
+
+
+class BlindReverseAlarm(ScriptedReverseAlarm):
+    """Push the gearshift; let go when a reverse alarm is heard, wherever it is."""
+
+    def should_release(self, obs, info) -> bool:
+        on, _ = heard(obs, self.label, self.threshold, self.min_conf)
+        return self.evidence.push(on, False)
+
+
+POLICY_CLASSES = {"reverse-alarm": BlindReverseAlarm}
+"""Task name -> blind policy class."""
+
+
+class BlindParkingBrake(ScriptedParkingBrake):
+    """Pull the brake; let go when a ratchet-like click is heard, wherever it is."""
+
+    def should_release(self, obs, info) -> bool:
+        on, _ = heard(obs, self.label, self.threshold, self.min_conf)
+        return self.evidence.push(on, False)
+
+
+POLICY_CLASSES["parking-brake"] = BlindParkingBrake
+
+
+class BlindCallResponse(TurnPolicy):
+    """On hearing a voice, spin the wheelchair to the left (not knowing where the voice is)
+    until ``spin_s`` after the voice was last heard."""
+
+    threshold = 0.5
+    spin_s = 2.5
+
+    def reset(self, obs, info) -> None:
+        super().reset(obs, info)
+        self.last_heard: float | None = None
+
+    def act(self, obs, info) -> np.ndarray:
+        on, _ = heard(obs, "human_voice", self.threshold, 0.0)
+        if on:
+            self.last_heard = self.time_s
+        spinning = self.last_heard is not None and self.time_s - self.last_heard <= self.spin_s
+        w = self.wheel_speed if spinning else 0.0
+        self.steps += 1
+        return self.layout.action({"left_wheel": -w, "right_wheel": w})
+
+
+POLICY_CLASSES["call-response"] = BlindCallResponse

@@ -1,0 +1,53 @@
+"""The oracle: the scripted behaviours driven by the ground truth in ``info``.
+
+It acts on the step after the target sound starts (the alarm, the required tooth's click,
+the person's call), from its true direction: the upper bound of the behaviour, what perfect
+hearing would give.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from policies.scripted import LeverPolicy, TurnPolicy, fixed_azimuth
+
+
+class OracleReverseAlarm(LeverPolicy):
+    """Push the gearshift; let go on the first step after the alarm has started (``info``)."""
+
+    side = "left"
+    rate_deg_s = 8.0
+    max_deg = 30.0
+
+    def should_release(self, obs, info) -> bool:
+        return info.get("target_onset_s") is not None
+
+
+POLICY_CLASSES = {"reverse-alarm": OracleReverseAlarm}
+"""Task name -> oracle policy class."""
+
+
+class OracleParkingBrake(OracleReverseAlarm):
+    """Pull the brake; let go on the first step after the required tooth has clicked (``info``)."""
+
+    side = "right"
+    rate_deg_s = 12.0
+    max_deg = 45.0
+
+
+POLICY_CLASSES["parking-brake"] = OracleParkingBrake
+
+
+class OracleCallResponse(TurnPolicy):
+    """Turn toward the person's true direction as soon as the person's call has started."""
+
+    def act(self, obs, info) -> np.ndarray:
+        for s in info.get("sounding", []):
+            if s["source"] == "voice":
+                self.target = fixed_azimuth(obs, s["direction"])
+        action = self.gaze_action(obs)
+        self.steps += 1
+        return action
+
+
+POLICY_CLASSES["call-response"] = OracleCallResponse

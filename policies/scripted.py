@@ -1,0 +1,325 @@
+"""The paper's behaviours, from the observation only (never ``info``).
+
+ReverseAlarm
+    Push the gearshift along the taught motion (toward D, through R) until the reverse alarm
+    is heard *from the front*, then let go.
+ParkingBrake
+    Pull the brake lever along the taught motion until the ratchet is heard *from the right*,
+    then let go.
+CallResponse
+    When a voice is heard, turn the head and eyes toward it, and the wheelchair when it is
+    beyond the neck's reach, until the person is in view. A direction that turned out to hold
+    no person (the loudspeaker, a front-back confusion) is remembered and not checked again;
+    a voice from there is tried at its front-back mirror image instead.
+
+"Heard from a direction" is a vote over the last frames: a frame votes for the class when
+its probability is at least ``threshold`` and the estimated direction lies in the accepted
+region (with some confidence), against it when the class is heard from elsewhere. The robot
+acts when at least ``votes`` of the last ``window`` frames voted for and more voted for than
+against: one stray frame (a mislocalized distractor, a front-back flip) does not decide.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from tasks.base import CLASSES, CONTROL_DT, lever_arm_angles
+
+
+class TaskPolicy:
+    """Base of the policies: the env's static action layout, a step counter.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        A task env (wrapped or not); only its static ``layout`` and ``task`` are read.
+    """
+
+    def __init__(self, env) -> None:
+        self.env = env.unwrapped
+        self.layout = self.env.layout
+        self.steps = 0
+
+    def reset(self, obs, info) -> None:
+        """Start of an episode (the observation and info of ``env.reset``)."""
+        self.steps = 0
+
+    def act(self, obs, info) -> np.ndarray:
+        """The action (normalized, float32) for the observation (and, for the oracle, info)."""
+        raise NotImplementedError
+
+    @property
+    def time_s(self) -> float:
+        """Seconds since the episode's start, at the step about to be taken."""
+        return self.steps * CONTROL_DT
+
+
+class Votes:
+    """Frame votes over a sliding window: for (the class from the accepted region) or against."""
+
+    def __init__(self, window: int, votes: int) -> None:
+        self.window, self.votes = int(window), int(votes)
+        self.frames: deque = deque(maxlen=self.window)
+
+    def reset(self) -> None:
+        self.frames.clear()
+
+    def push(self, pro: bool, con: bool) -> bool:
+        """Add one frame's vote; True when the evidence decides."""
+        self.frames.append((bool(pro), bool(con)))
+        pros = sum(p for p, _ in self.frames)
+        cons = sum(c for _, c in self.frames)
+        return pros >= self.votes and pros > cons
+
+
+def azimuth_deg(v) -> float:
+    """Azimuth (deg, + left) of a head-frame vector."""
+    return math.degrees(math.atan2(float(v[1]), float(v[0])))
+
+
+def heard(obs, label: str, threshold: float, min_conf: float) -> tuple[bool, np.ndarray | None]:
+    """Whether ``label`` is heard in this frame, and its direction when it has a confident estimate."""
+    i = CLASSES.index(label)
+    on = float(obs["class_prob"][i]) >= threshold
+    has = float(obs["class_conf"][i]) > min_conf and float(np.linalg.norm(obs["class_dir"][i])) > 0.5
+    return on, (np.asarray(obs["class_dir"][i], float) if on and has else None)
+
+
+# -- the cabin: a hand on a lever -------------------------------------------------------------------
+
+
+class LeverPolicy(TaskPolicy):
+    """Move a lever along the taught motion until :meth:`should_release`, then open the hand.
+
+    Attributes (class level)
+    ------------------------
+    side : str
+        The hand on the lever.
+    delay_s, rate_deg_s, max_deg : float
+        The taught motion: still for ``delay_s``, then ``rate_deg_s`` up to ``max_deg``.
+    """
+
+    side = "left"
+    delay_s = 0.2
+    rate_deg_s = 8.0
+    max_deg = 30.0
+
+    def reset(self, obs, info) -> None:
+        super().reset(obs, info)
+        self.released = False
+        self._arm = lever_arm_angles(self.side, 0.0)
+
+    def lever_target_deg(self) -> float:
+        return float(np.clip(self.rate_deg_s * (self.time_s - self.delay_s), 0.0, self.max_deg))
+
+    def should_release(self, obs, info) -> bool:
+        raise NotImplementedError
+
+    def act(self, obs, info) -> np.ndarray:
+        if not self.released and self.should_release(obs, info):
+            self.released = True
+        if not self.released:
+            self._arm = lever_arm_angles(self.side, self.lever_target_deg())
+        values = self.layout.arm(self.side, self._arm)
+        values[f"grasp_{self.side}"] = -1.0 if self.released else 1.0
+        self.steps += 1
+        return self.layout.action(values)
+
+
+class ScriptedReverseAlarm(LeverPolicy):
+    """Push the gearshift until the reverse alarm is heard from the front, then let go.
+
+    Parameters (class level): ``threshold`` (class probability), ``min_conf`` (direction
+    confidence), ``front_deg`` (half-width of the front sector, deg of azimuth), ``window``
+    and ``votes`` (see :class:`Votes`).
+    """
+
+    side = "left"
+    rate_deg_s = 8.0
+    max_deg = 30.0
+    label = "reverse_alarm"
+    threshold = 0.5
+    min_conf = 0.0
+    front_deg = 45.0
+    window = 8
+    votes = 3
+
+    def reset(self, obs, info) -> None:
+        super().reset(obs, info)
+        self.evidence = Votes(self.window, self.votes)
+
+    def accept(self, direction: np.ndarray) -> bool:
+        """The alarm's region: in front (azimuth within ``front_deg``)."""
+        return abs(azimuth_deg(direction)) <= self.front_deg
+
+    def should_release(self, obs, info) -> bool:
+        on, d = heard(obs, self.label, self.threshold, self.min_conf)
+        pro = on and d is not None and self.accept(d)
+        con = on and d is not None and not self.accept(d)
+        return self.evidence.push(pro, con)
+
+
+POLICY_CLASSES = {"reverse-alarm": ScriptedReverseAlarm}
+"""Task name -> scripted policy class (filled in below for every task)."""
+
+
+class ScriptedParkingBrake(ScriptedReverseAlarm):
+    """Pull the brake lever until the ratchet is heard from the right, then let go.
+
+    ``right_deg``: the accepted azimuths, from -``right_deg[1]`` to -``right_deg[0]``
+    (the ratchet's pawl is at about -110 deg, low).
+    """
+
+    side = "right"
+    delay_s = 0.2
+    rate_deg_s = 12.0
+    max_deg = 45.0
+    label = "ratchet"
+    right_deg = (35.0, 165.0)
+    window = 6
+    votes = 2
+
+    def accept(self, direction: np.ndarray) -> bool:
+        az = azimuth_deg(direction)
+        return -self.right_deg[1] <= az <= -self.right_deg[0]
+
+
+POLICY_CLASSES["parking-brake"] = ScriptedParkingBrake
+
+
+# -- the room: turn toward a voice ------------------------------------------------------------------
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def fixed_azimuth(obs, v_head) -> float:
+    """Azimuth (rad, + left) in the frame fixed at the episode's start, from a head-frame vector.
+
+    The head turns on the wheelchair by the neck's yaw then pitch (proprioception), the
+    wheelchair by its odometry heading: ``v = Rz(heading) Rz(neck_yaw) Ry(neck_pitch) v_head``.
+    """
+    yaw, pitch = float(obs["joint_pos"][0]), float(obs["joint_pos"][1])
+    x, y, z = (float(c) for c in v_head)
+    x, z = x * math.cos(pitch) + z * math.sin(pitch), -x * math.sin(pitch) + z * math.cos(pitch)
+    return _wrap(math.atan2(y, x) + yaw + float(obs["base"][0]))
+
+
+class TurnPolicy(TaskPolicy):
+    """Gaze at a direction fixed in the room: neck and eyes, and the wheelchair beyond them.
+
+    ``target`` (rad, fixed frame) is set by subclasses; the gaze moves the neck up to
+    ``neck_max_deg`` and the eyes up to ``eye_max_deg``; a target beyond ``turn_body_deg``
+    of the wheelchair's heading turns the chair on the spot at ``wheel_speed`` (rad/s)
+    until it is within ``stop_body_deg``.
+    """
+
+    neck_max_deg = 85.0
+    eye_max_deg = 28.0
+    turn_body_deg = 100.0
+    stop_body_deg = 50.0
+    wheel_speed = 1.5
+
+    def reset(self, obs, info) -> None:
+        super().reset(obs, info)
+        self.target: float | None = None
+        self.turning_body = False
+
+    def gaze_action(self, obs) -> np.ndarray:
+        values = {"left_wheel": 0.0, "right_wheel": 0.0}
+        if self.target is not None:
+            rel = _wrap(self.target - float(obs["base"][0]))
+            if abs(rel) > math.radians(self.turn_body_deg):
+                self.turning_body = True
+            elif abs(rel) < math.radians(self.stop_body_deg):
+                self.turning_body = False
+            if self.turning_body:
+                w = self.wheel_speed * (1.0 if rel > 0 else -1.0)
+                values.update(left_wheel=-w, right_wheel=w)
+            neck = float(np.clip(rel, -math.radians(self.neck_max_deg), math.radians(self.neck_max_deg)))
+            eye = float(np.clip(rel - neck, -math.radians(self.eye_max_deg), math.radians(self.eye_max_deg)))
+            values.update(neck_yaw=neck, eye_yaw=eye)
+        return self.layout.action(values)
+
+    def gaze_settled(self, obs) -> bool:
+        """The gaze is at the target and the body still."""
+        if self.target is None or self.turning_body:
+            return False
+        rel = _wrap(self.target - float(obs["base"][0]))
+        gaze = float(obs["joint_pos"][0]) + float(obs["joint_pos"][2])
+        still = abs(float(obs["base"][2])) < 0.05 and float(np.max(np.abs(obs["joint_vel"][:4]))) < 0.1
+        return abs(_wrap(rel - gaze)) < math.radians(4.0) and still
+
+
+class ScriptedCallResponse(TurnPolicy):
+    """Turn toward the voice; if nobody is there, remember the direction and wait for the next
+    call (a voice from a remembered direction is tried at its front-back mirror image).
+
+    A direction is decided from ``decide_frames`` frames in which the voice was heard with
+    a direction (or fewer, at least ``min_frames``, when the voice stops for ``gap_frames``):
+    the confidence-weighted circular mean of their azimuths in the fixed frame.
+    """
+
+    threshold = 0.5
+    min_conf = 0.0
+    decide_frames = 8
+    min_frames = 3
+    gap_frames = 10
+    look_s = 0.4
+    same_deg = 30.0
+
+    def reset(self, obs, info) -> None:
+        super().reset(obs, info)
+        self.frames: list[tuple[float, float, float]] = []  # (azimuth, mirrored azimuth, weight)
+        self.gap = 0
+        self.checked: list[float] = []
+        self.settled_steps = 0
+
+    def _mean(self, k: int) -> float:
+        w = np.array([f[2] for f in self.frames])
+        a = np.array([f[k] for f in self.frames])
+        return math.atan2(float(np.sum(w * np.sin(a))), float(np.sum(w * np.cos(a))))
+
+    def _is_checked(self, az: float) -> bool:
+        return any(abs(_wrap(az - c)) < math.radians(self.same_deg) for c in self.checked)
+
+    def _decide(self) -> None:
+        direct, mirror = self._mean(0), self._mean(1)
+        self.frames.clear()
+        for candidate in (direct, mirror):
+            if not self._is_checked(candidate):
+                if self.target is None or abs(_wrap(candidate - self.target)) > math.radians(self.same_deg):
+                    self.target = candidate
+                    self.settled_steps = 0
+                return
+
+    def act(self, obs, info) -> np.ndarray:
+        on, d = heard(obs, "human_voice", self.threshold, self.min_conf)
+        if on and d is not None:
+            mirrored = np.array([-d[0], d[1], d[2]])
+            w = 0.1 + float(obs["class_conf"][CLASSES.index("human_voice")])
+            self.frames.append((fixed_azimuth(obs, d), fixed_azimuth(obs, mirrored), w))
+            self.gap = 0
+        else:
+            self.gap += 1
+        if len(self.frames) >= self.decide_frames or (self.gap >= self.gap_frames and len(self.frames) >= self.min_frames):
+            self._decide()
+        elif self.gap >= self.gap_frames:
+            self.frames.clear()
+        if self.gaze_settled(obs):
+            self.settled_steps += 1
+            if self.settled_steps * CONTROL_DT >= self.look_s:  # looked, nobody there
+                self.checked.append(self.target)
+                if len(self.checked) > 4:
+                    self.checked = self.checked[-2:]
+                self.settled_steps = -10**9  # until a new target
+        action = self.gaze_action(obs)
+        self.steps += 1
+        return action
+
+
+POLICY_CLASSES["call-response"] = ScriptedCallResponse

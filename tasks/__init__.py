@@ -1,0 +1,52 @@
+"""Gymnasium tasks with hearing in the loop (issue 5), registered under ``acoustic_sim/``.
+
+==============================  =====================================  ======================
+id                              class                                  scene
+==============================  =====================================  ======================
+``acoustic_sim/ReverseAlarm-v0``  :class:`tasks.reverse_alarm.ReverseAlarmEnv`  cabin (gearshift)
+``acoustic_sim/ParkingBrake-v0``  :class:`tasks.parking_brake.ParkingBrakeEnv`  cabin (parking brake)
+``acoustic_sim/CallResponse-v0``  :class:`tasks.call_response.CallResponseEnv`  room (wheelchair)
+==============================  =====================================  ======================
+
+``gymnasium.make("acoustic_sim/ReverseAlarm-v0", profile="fast")`` after ``import tasks``.
+The classes' docstrings are the specifications. Importing this package imports no MuJoCo
+or torch (the env modules load on first use: ``gymnasium.make`` or attribute access), so it
+can choose MuJoCo's offscreen OpenGL backend first (``render_mode="rgb_array"``, ``image_obs``).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from gymnasium.envs.registration import register, registry
+
+from acoustic_sim.world.snapshot import choose_gl_backend
+
+# MuJoCo fixes its OpenGL backend when it is first imported; the task modules import it, so
+# an offscreen one (EGL or OSMesa, unless MUJOCO_GL says otherwise) is chosen here, first.
+choose_gl_backend()
+
+TASKS = {
+    "reverse-alarm": ("acoustic_sim/ReverseAlarm-v0", "tasks.reverse_alarm:ReverseAlarmEnv"),
+    "parking-brake": ("acoustic_sim/ParkingBrake-v0", "tasks.parking_brake:ParkingBrakeEnv"),
+    "call-response": ("acoustic_sim/CallResponse-v0", "tasks.call_response:CallResponseEnv"),
+}
+"""Command-line task name -> (Gymnasium id, entry point)."""
+
+for _id, _entry in TASKS.values():
+    if _id not in registry:
+        register(id=_id, entry_point=_entry)
+
+_LAZY = {
+    "ReverseAlarmEnv": "tasks.reverse_alarm",
+    "ParkingBrakeEnv": "tasks.parking_brake",
+    "CallResponseEnv": "tasks.call_response",
+}
+
+__all__ = ["TASKS", "CallResponseEnv", "ParkingBrakeEnv", "ReverseAlarmEnv"]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'tasks' has no attribute {name!r}")

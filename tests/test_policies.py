@@ -1,0 +1,182 @@
+"""Headless task regression tests: the policies over seeded episodes (``fast`` profile).
+
+``oracle`` (ground truth) must meet every target: that checks the tasks, their outcomes and
+their timing. ``scripted`` (the paper's behaviours, from the percepts) and ``blind`` (classes
+without directions) depend on the auditory pipeline: a probe first checks that the ``fast``
+models detect the task sounds at all; the targets that need reliable *directions* in the
+car cabin are marked ``xfail`` (non-strict) with the measured reason (see the issue 5
+report), so they show as XPASS once the pipeline delivers them.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tasks/ and policies/ beside acoustic_sim/
+
+from acoustic_sim import runner
+from acoustic_sim.errors import ConfigError
+from policies import POLICIES, make_policy
+
+EPISODES = 20
+BLIND_EPISODES = 12  # enough to show that the distractors bite
+LOCALIZATION = (
+    "auditory pipeline: in the car cabin's early reflections the SSDENet estimates of the narrow-band reverse alarm "
+    "and of the 35 ms ratchet clicks are not reliable enough for a front/right decision (issue 5 report)"
+)
+
+
+@pytest.fixture(scope="module")
+def envs():
+    made = {t: runner.make_env(t, profile="fast") for t in runner.TASK_NAMES}
+    yield made
+    for env in made.values():
+        env.close()
+
+
+@pytest.fixture(scope="module")
+def hearing(envs):
+    """Whether the fast MelCNN detects the tasks' target sounds at all (probe, ~1 s)."""
+    from acoustic_sim.acoustics import sounds
+    from acoustic_sim.acoustics.microphone import Microphone
+    from acoustic_sim.acoustics.renderer import BinauralRenderer
+    from acoustic_sim.acoustics.room import room_preset
+    from acoustic_sim.frames import rotation_zyx, sph_to_vec
+    from tasks.base import CLASSES, make_pipeline
+
+    pipe = make_pipeline("fast")
+    hits = {}
+    for label in ("reverse_alarm", "ratchet", "human_voice"):
+        rng = np.random.default_rng(5)
+        space = room_preset("anechoic")
+        r = BinauralRenderer(pipe.hrtf, space, rng=rng)
+        r.set_head_pose(np.zeros(3), rotation_zyx(0.0))
+        r.add_source("s", sounds.generate(label, rng, seconds=1.0), 1.5 * sph_to_vec(30.0, 0.0), level_db=75.0, start=0)
+        percepts = pipe.process(Microphone(rng=rng)(r.render(1.0)))
+        hits[label] = float(np.mean([p.probabilities[CLASSES.index(label)] >= 0.5 for p in percepts[25:]]))
+    return hits
+
+
+def need(hearing, *labels):
+    bad = {k: v for k, v in hearing.items() if k in labels and v < 0.3}
+    if bad:
+        pytest.xfail(f"the fast MelCNN does not detect {sorted(bad)} (fraction of frames detected: {bad}): a pipeline issue")
+
+
+RESULTS: dict = {}
+
+
+def episodes(envs, task, policy, n=EPISODES, seed=100):
+    key = (task, policy, n, seed)
+    if key not in RESULTS:
+        env = envs[task]
+        pol = make_policy(policy, env)
+        records = [runner.run_episode(env, pol, seed + i, episode=i) for i in range(n)]
+        RESULTS[key] = (runner.summarize(records), records)
+        s = RESULTS[key][0]
+        print(f"\n{task} {policy}: success {s['success_rate']}, false releases {s['false_release_rate']}, "
+              f"median reaction {s['median_reaction_s']} s, outcomes {s['outcomes']}")
+    return RESULTS[key]
+
+
+# -- the oracle: the tasks themselves ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("task", runner.TASK_NAMES)
+def test_oracle_meets_every_target(envs, task):
+    summary, records = episodes(envs, task, "oracle", n=4)
+    assert summary["success_rate"] == 1.0, summary["outcomes"]
+    assert summary["false_release_rate"] == 0.0
+    limit = 2.0 if task == "call-response" else 0.05  # a step after the sound; the room: turning takes time
+    assert all(r["reaction_s"] is not None and r["reaction_s"] <= limit for r in records), [r["reaction_s"] for r in records]
+
+
+# -- blind and scripted: what hearing the direction is worth ----------------------------------------------
+
+
+@pytest.mark.parametrize("task", ["reverse-alarm", "parking-brake"])
+def test_blind_lets_go_on_distractors(envs, hearing, task):
+    need(hearing, "reverse_alarm" if task == "reverse-alarm" else "ratchet", "human_voice")
+    summary, _ = episodes(envs, task, "blind", n=BLIND_EPISODES)
+    assert summary["false_release_rate"] >= 0.25, summary
+
+
+@pytest.mark.parametrize("task", ["reverse-alarm", "parking-brake"])
+def test_scripted_lets_go_falsely_less_often_than_blind(envs, hearing, task):
+    need(hearing, "reverse_alarm" if task == "reverse-alarm" else "ratchet", "human_voice")
+    scripted, _ = episodes(envs, task, "scripted")
+    blind, _ = episodes(envs, task, "blind", n=BLIND_EPISODES)
+    assert scripted["false_release_rate"] < blind["false_release_rate"], (scripted, blind)
+
+
+@pytest.mark.xfail(reason=LOCALIZATION, strict=False)
+def test_scripted_reverse_alarm_targets(envs, hearing):
+    need(hearing, "reverse_alarm")
+    summary, _ = episodes(envs, "reverse-alarm", "scripted")
+    assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, summary
+    assert summary["median_reaction_s"] <= 0.5, summary
+
+
+@pytest.mark.xfail(reason=LOCALIZATION, strict=False)
+def test_scripted_parking_brake_targets(envs, hearing):
+    need(hearing, "ratchet")
+    summary, _ = episodes(envs, "parking-brake", "scripted")
+    assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, summary
+    assert summary["median_reaction_s"] <= 0.3, summary
+
+
+def test_scripted_call_response_finds_the_person(envs, hearing):
+    need(hearing, "human_voice")
+    summary, records = episodes(envs, "call-response", "scripted")
+    assert summary["success_rate"] >= 0.9, summary
+    assert all(r["episode_s"] <= 30.0 for r in records if r["success"])
+
+
+# -- the runner and the policies' API -----------------------------------------------------------------------
+
+
+def test_run_episodes_writes_episodes_json_and_a_table(tmp_path, capsys):
+    result = runner.run_episodes("parking-brake", "oracle", 2, 3, tmp_path / "run", profile="fast", progress=True)
+    data = json.loads((tmp_path / "run" / "episodes.json").read_text())
+    assert data["summary"] == result["summary"] and len(data["records"]) == 2
+    assert [r["seed"] for r in data["records"]] == [3, 4]
+    for key in ("success_rate", "median_reaction_s", "false_release_rate"):
+        assert key in data["summary"]
+    out = capsys.readouterr().out
+    assert "success_rate" in out and "false_release_rate" in out
+
+
+def test_run_command_line(tmp_path):
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="acoustic-sim")
+    runner.add_parsers(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["run", "parking-brake", "--policy", "oracle", "--episodes", "1", "--seed", "2",
+                              "--out", str(tmp_path), "--profile", "fast"])
+    assert args.func(args) == 0 and (tmp_path / "episodes.json").is_file()
+    with pytest.raises(SystemExit):
+        parser.parse_args(["run", "juggling", "--out", str(tmp_path)])
+
+
+def test_step_callback_sees_every_step(envs):
+    seen = []
+    env = envs["parking-brake"]
+    record = runner.run_episode(env, make_policy("oracle", env), 1, step_callback=lambda e, ep, k, *rest: seen.append(k))
+    assert seen == list(range(record["steps"] + 1))
+
+
+def test_policy_and_runner_errors(envs):
+    with pytest.raises(ConfigError, match="unknown policy"):
+        make_policy("telepathic", envs["reverse-alarm"])
+    with pytest.raises(ConfigError, match="not a hearing task"):
+        import gymnasium as gym
+
+        make_policy("scripted", gym.make("CartPole-v1"))
+    with pytest.raises(ConfigError, match="unknown task"):
+        runner.make_env("juggling")
+    with pytest.raises(ConfigError, match="episodes"):
+        runner.run_episodes("reverse-alarm", "oracle", 0, 0, "unused", profile="fast", progress=False)
+    assert set(POLICIES) == set(runner.POLICY_NAMES)
