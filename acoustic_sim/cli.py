@@ -133,6 +133,16 @@ def build_parser() -> argparse.ArgumentParser:
     bv.add_argument("--out", type=Path, default=Path("bench/viz.json"), help="output JSON (default bench/viz.json)")
     bv.add_argument("--quick", action="store_true", help="10 s instead of 60 s")
     bv.set_defaults(func=cmd_bench, bench_module="bench_viz")
+    be = bsub.add_parser(
+        "env",
+        help="env steps per second of the hearing tasks (paper, fast, a vector of 2)",
+        description="Steps each task env with the scripted policy (physics, rendering, microphone, pipeline, "
+        "observation) for the paper and fast profiles, and a vector of 2 envs (async and sync); writes "
+        "env_steps_per_s. Targets: 62.5 (paper), 300 (fast).",
+    )
+    be.add_argument("--out", type=Path, default=Path("bench/env.json"), help="output JSON (default bench/env.json)")
+    be.add_argument("--quick", action="store_true", help="fast profile only, short runs (for tests)")
+    be.set_defaults(func=cmd_bench, bench_module="bench_env")
     bp = bsub.add_parser(
         "pipeline",
         help="auditory pipeline time per ear frame and SSDENet training time",
@@ -158,6 +168,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     cli_auditory.add_parsers(sub)
     cli_world.add_parsers(sub)
+    from acoustic_sim import runner
+
+    runner.add_parsers(sub)
     return parser
 
 
