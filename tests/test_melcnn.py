@@ -173,8 +173,6 @@ def test_data_config_and_arguments_are_checked(anechoic_bank):
 # -- training, evaluation, checkpoints -----------------------------------------------------
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (issue 3, open): the fast MelCNN profile does not learn yet "
-                   "(held-out macro F1 0.0 in session 2); strict, so the suite fails once it is fixed and this mark must go")
 def test_fast_model_beats_chance_on_heldout_data(fast_model):
     result = mc.evaluate(fast_model, mc.heldout_rng("fast"), mc.PROFILES["fast"].eval_examples, brirs_per_room=1)
     assert set(result) >= {"f1_macro", "per_class", "threshold"} and result["threshold"] == 0.5

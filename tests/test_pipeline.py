@@ -54,8 +54,6 @@ def test_process_gives_one_percept_per_frame_on_the_clock(pipe, kemar):
     json.dumps(percepts[-1].to_json())
 
 
-@pytest.mark.xfail(strict=True, reason="known defect (issue 3, open): the fast MelCNN does not detect the alarm yet "
-                   "(fused probability 0.21 in session 2); strict, so the suite fails once it is fixed")
 def test_fast_pipeline_detects_the_alarm(pipe, kemar):
     pipe.reset()
     percepts = pipe.process(_render(kemar, "reverse_alarm", 0.0, room="car_cabin", seconds=1.2, distance=0.8))
