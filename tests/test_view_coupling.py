@@ -287,3 +287,21 @@ def test_coupling_errors(cabin, kemar):
         Coupling.from_scene("cabin", rng=0)
     with pytest.raises(ConfigError, match="unknown scene"):
         Coupling.from_scene("garage", rng=np.random.default_rng(0))
+
+
+def test_view_body_poses_and_camera_pose_are_copies(cabin):
+    model, data, _ = cabin
+    mujoco.mj_forward(model, data)
+    v = WorldView(model, data)
+    pos, quat = v.body_poses()
+    assert pos.shape == (model.nbody, 3) and quat.shape == (model.nbody, 4)
+    np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-9)
+    pos[:] = 99.0
+    assert not np.any(data.xpos == 99.0)
+    origin, rot = v.camera_pose(names.EYE_CAMERAS[1])
+    np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-9)
+    # The eye camera sits on the head, within 0.15 m of the ears' midpoint.
+    left, right = v.ear_poses()
+    assert np.linalg.norm(origin - (left + right) / 2) < 0.15
+    with pytest.raises(ConfigError, match="no camera"):
+        v.camera_pose("no_such_camera")

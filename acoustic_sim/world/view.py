@@ -353,6 +353,26 @@ class WorldView:
         b = self._body(name)
         return b.xpos.copy(), b.xmat.reshape(3, 3).copy()
 
+    def body_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (nbody x 3, m, world) and quaternions (nbody x 4, w x y z, body to world)
+        of every body, indexed by body id; copies, so the caller cannot change the state."""
+        return np.array(self._data.xpos, dtype=np.float64), np.array(self._data.xquat, dtype=np.float64)
+
+    def camera_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position (m, world) and orientation (3x3, camera to world) of camera ``name``.
+
+        MuJoCo's camera frame looks along its -z axis with +y up (the OpenGL convention).
+
+        Raises
+        ------
+        ConfigError
+            If the model has no camera of that name.
+        """
+        cid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, name)
+        if cid < 0:
+            raise ConfigError(f"the model has no camera {name!r}")
+        return self._data.cam_xpos[cid].copy(), self._data.cam_xmat[cid].reshape(3, 3).copy()
+
     def joint_angle(self, name: str) -> float:
         """Position of a hinge or slide joint (rad or m)."""
         j = self._joint(name)
