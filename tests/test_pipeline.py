@@ -151,3 +151,42 @@ def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
     det = json.loads((out / "detection.json").read_text())
     assert 0 <= det["f1_macro"] <= 1 and set(det["per_class"]) == set(sounds.SOUND_CLASSES)
     assert "| signal |" in (out / "REPORT.md").read_text()
+
+
+class _AlwaysDetects:
+    """A detector that declares every class in every frame: isolates the direction stage."""
+
+    def __init__(self, real):
+        self.classes = real.classes
+        self.characteristic_bins = {}
+
+    def predict(self, patch):
+        return np.ones((2, len(self.classes)), np.float32)
+
+
+def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
+    """A 0.05 s noise burst from the right, then silence: with the default window the
+    direction stays on the burst for direction_frames frames after it; with one frame it is
+    gone as soon as the burst's frames have passed."""
+    rng = np.random.default_rng(3)
+    space = room_preset("anechoic")
+    r = BinauralRenderer(kemar, space, rng=rng)
+    r.set_head_pose(np.zeros(3), rotation_zyx(0.0))
+    burst = np.concatenate([np.zeros(22050), sounds.white_noise(0.05, rng), np.zeros(22050)])
+    r.add_source("s", burst, 1.5 * sph_to_vec(-90.0, 0.0), level_db=80.0, start=0)
+    audio = Microphone(rng=rng)(r.render(len(burst) / 44100))
+    out = {}
+    for frames in (1, 12):
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
+                             direction_frames=frames)
+        out[frames] = p.process(audio)
+    has = {f: np.array([bool(q.directions) for q in ps]) for f, ps in out.items()}
+    last = int(np.flatnonzero(has[1]).max())  # the last frame that still holds burst energy
+    assert 1 <= has[1].sum() <= 7  # a 50 ms burst overlaps (50 + 46) / 16 + 1 frames of 46 ms at most
+    assert not has[1][last + 1 :].any()
+    assert has[12][last + 1 : last + 12].all() and not has[12][last + 12 :].any()
+    for q in out[12][last + 1 : last + 12]:
+        est = q.directions[pipe.classes[0]]
+        assert abs(((est.azimuth_deg + 90.0 + 180.0) % 360.0) - 180.0) <= 30.0
+    with pytest.raises(ConfigError, match="direction_frames"):
+        AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, direction_frames=0)

@@ -7,8 +7,17 @@ Per ear frame (62.5 Hz on the sample clock)::
     p          = (V_l p_l + V_r p_r) / (V_l + V_r)                 melcnn.fuse
     detected   = classes with p >= threshold
     valid_c    = bins with power > factor x noise, within the characteristic bins of c
-    P_c(d)     = sum over valid_c of SSDENet_i(ILD, IPD)           ssdenet.SSDENetBank
+    P_c(d)     = sum over valid_c of SSDENet_i(ILD, IPD),          ssdenet.SSDENetBank
+                 over the last ``direction_frames`` frames
     estimate_c = argmax_d P_c(d)
+
+Why a class's direction sums the last frames, not only the current one: the MelCNN sees
+the last 25 frames, so it declares a class some frames after its sound began. A click
+(the ratchet) is over by then: the current frame holds no energy in its bins, and its
+direction lies in the frames it was detected from. Summing the existence maps of the
+recent frames (the paper's sum over bins, extended over time) keeps that evidence and
+averages out the frame-to-frame scatter that reverberation gives the interaural cues.
+The maps are computed once per frame, only when some class is detected, and kept.
 
 The noise that the validity threshold refers to is the robot's own driving noise (the
 paper: 10 times its spectrum per bin). Without a robot (a WAV file), the default is the
@@ -39,6 +48,9 @@ METHODS = ("ssdenet", "music", "gcc-phat")
 
 VALIDITY_FACTOR = 10.0
 """The paper's threshold: a bin is valid when its power exceeds 10 x the noise's."""
+
+DIRECTION_FRAMES = 12
+"""Frames (0.19 s) of existence maps that a detected class's direction sums by default."""
 
 
 def microphone_noise_power(seconds: float = 1.0) -> np.ndarray:
@@ -80,12 +92,16 @@ class AuditoryPipeline:
         Detection threshold on the fused class probability, 0..1 (default 0.5).
     factor : float
         Validity factor over the noise power (the paper: 10).
+    direction_frames : int
+        Frames whose existence maps a class's direction sums (default
+        :data:`DIRECTION_FRAMES`, 0.19 s; 1 = the current frame only).
 
     Use :meth:`load` to get one with trained (cached) models.
     """
 
     def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
-                 threshold: float = 0.5, factor: float = VALIDITY_FACTOR) -> None:
+                 threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
+                 direction_frames: int = None) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -95,6 +111,9 @@ class AuditoryPipeline:
             raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
         if not (np.isfinite(factor) and factor > 0):
             raise ConfigError(f"factor must be > 0, got {factor}")
+        direction_frames = DIRECTION_FRAMES if direction_frames is None else direction_frames
+        if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
+            raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
         self.hrtf = hrtf
         self.grid = grid
         self.ssdenet = ssdenet
@@ -114,10 +133,14 @@ class AuditoryPipeline:
         self.frontend = EarFrontEnd()
         self.mel = MelHistory()
         self.volumes: deque = deque(maxlen=MEL_FRAMES)
+        self.direction_frames = int(direction_frames)
+        # Per recent frame: [valid bank bins (n_bank,), ILD/IPD at them (n_valid, 5),
+        # existence maps (n_valid, D) or None until a detection needs them].
+        self.evidence: deque = deque(maxlen=self.direction_frames)
 
     @classmethod
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
-             threshold: float = 0.5, progress: bool = True) -> AuditoryPipeline:
+             threshold: float = 0.5, direction_frames: int | None = None, progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -133,7 +156,8 @@ class AuditoryPipeline:
         grid = DirectionGrid.paper(ears)
         bank = SSDENetBank.load_or_train(ears, grid, profile, progress=progress)
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
-        return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold)
+        return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
+                   direction_frames=direction_frames)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -152,6 +176,7 @@ class AuditoryPipeline:
         self.frontend.reset()
         self.mel.reset()
         self.volumes.clear()
+        self.evidence.clear()
 
     # -- streaming ----------------------------------------------------------------------------
     def process(self, block) -> list[Percept]:
@@ -162,6 +187,9 @@ class AuditoryPipeline:
     def _frame(self, k: int, t: float, x: np.ndarray) -> Percept:
         self.mel.push(x)
         self.volumes.append(ear_volume(x))
+        valid = valid_bins(x, self.noise_power, self.factor)[self.ssdenet.bins]
+        sel = x[:, self.ssdenet.bins[valid]]
+        self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None])
         patch = self.mel.patch()
         volume = np.mean(np.asarray(self.volumes), axis=0)
         p_ears = self.melcnn.predict(patch)  # (2, C)
@@ -170,26 +198,30 @@ class AuditoryPipeline:
         detected = tuple(self.classes[i] for i in order if probs[i] >= self.threshold)
         directions = {}
         if detected:
-            directions = self._directions(x, [self.classes.index(c) for c in detected])
+            directions = self._directions([self.classes.index(c) for c in detected])
         return Percept(frame=k, time_s=t, classes=self.classes, probabilities=probs, detected=detected,
                        directions=directions, mel=patch[:, -1, :].copy(), volume=volume)
 
-    def _directions(self, x: np.ndarray, class_indices: list[int]) -> dict:
-        """SSDENet estimates for the given classes from one frame (2, 1025)."""
-        bins = self.ssdenet.bins
-        valid = valid_bins(x, self.noise_power, self.factor)[bins]  # (n_bank,)
-        masks = self._class_masks[class_indices] & valid[None, :]  # (c, n_bank)
-        used = np.flatnonzero(masks.any(axis=0))
-        out = {}
-        if used.size == 0:
-            return out
-        sel = x[:, bins[used]]
-        subset = None if used.size == bins.size else used
-        maps = self.ssdenet.existence(ild_ipd(sel[0], sel[1]), subset=subset)  # (n_used, D)
-        for row, c in zip(masks[:, used], class_indices):
-            if row.any():
-                out[self.classes[c]] = _estimate(maps[row].sum(axis=0), self.grid, int(row.sum()), "ssdenet")
-        return out
+    def _directions(self, class_indices: list[int]) -> dict:
+        """SSDENet estimates for the given classes from the recent frames' evidence."""
+        n_bank, n_dirs = self.ssdenet.n_bins, len(self.grid)
+        masks = self._class_masks[class_indices]  # (c, n_bank)
+        total = np.zeros((len(class_indices), n_dirs), np.float64)
+        counts = np.zeros(len(class_indices), np.int64)
+        for item in self.evidence:
+            valid, features, maps = item
+            if not valid.any():
+                continue
+            if maps is None:
+                used = np.flatnonzero(valid)
+                maps = item[2] = self.ssdenet.existence(features, subset=None if used.size == n_bank else used)
+            rows = masks[:, valid]  # (c, n_valid)
+            total += rows.astype(np.float32) @ maps
+            counts += rows.sum(axis=1)
+        return {
+            self.classes[c]: _estimate(total[i].astype(np.float32), self.grid, int(counts[i]), "ssdenet")
+            for i, c in enumerate(class_indices) if counts[i]
+        }
 
     # -- whole recordings ---------------------------------------------------------------------
     def _check_method(self, method: str) -> None:
