@@ -14,7 +14,9 @@ import numpy as np
 
 from acoustic_sim.errors import ConfigError
 
-HRTF_HELP = "'kemar' (bundled MIT KEMAR), 'spherical' (rigid sphere, no pinna) or a SimpleFreeFieldHRIR .sofa file"
+HRTF_HELP = ("'kemar' (bundled MIT KEMAR, mirror-symmetric ears), 'musashi' (the robot's ears: KEMAR with the right pinna "
+             "tilted 10 deg, so that the median plane has interaural cues), 'spherical' (rigid sphere, no pinna) or a "
+             "SimpleFreeFieldHRIR .sofa file")
 
 
 def add_parsers(sub) -> None:
@@ -75,7 +77,7 @@ def add_parsers(sub) -> None:
         "the conference room), detection.json (MelCNN F1), REPORT.md and figures.",
     )
     ep.add_argument("--out", type=Path, required=True, help="output folder")
-    ep.add_argument("--hrtf", default="kemar", help=f"the robot's ears: {HRTF_HELP}")
+    ep.add_argument("--hrtf", default="musashi", help=f"the robot's ears (default musashi): {HRTF_HELP}")
     ep.add_argument("--quick", action="store_true", help="fewer directions and sounds, small models (about 3 minutes; for tests)")
     ep.add_argument("--seed", type=int, default=0, help="random seed")
     ep.set_defaults(func=cmd_eval_paper)

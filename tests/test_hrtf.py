@@ -535,3 +535,41 @@ def test_error_source_at_listener(small, tmp_path):
     pos = np.column_stack([small.azimuth_deg, small.elevation_deg, np.ones(20)])
     pos[2] = [0, 0, 0]
     assert_hrtf_error(write_raw_sofa(tmp_path / "origin.sofa", small.hrir, pos), "zero distance")
+
+
+# -- the robot's ears: KEMAR with the right pinna tilted -----------------------------------------
+
+
+def _ild_db(h, band=(4000.0, 12000.0)):
+    s = h.spectra(2048)
+    f = np.fft.rfftfreq(2048, 1 / h.sample_rate)
+    sel = (f >= band[0]) & (f <= band[1])
+    return 20 * np.log10(np.abs(s[:, 0, sel]) + 1e-12) - 20 * np.log10(np.abs(s[:, 1, sel]) + 1e-12)
+
+
+def test_musashi_ears_break_the_median_plane_symmetry(kemar):
+    from acoustic_sim.acoustics.hrtf import tilted_right_pinna
+
+    m = HRTF.load("musashi")
+    assert m.name == "musashi" and m.ident != kemar.ident
+    np.testing.assert_allclose(m.directions, kemar.directions)
+    # The left ear is KEMAR's up to the common normalization gain.
+    ratio = np.linalg.norm(m.hrir[:, 0]) / np.linalg.norm(kemar.hrir[:, 0])
+    np.testing.assert_allclose(m.hrir[:, 0], ratio * kemar.hrir[:, 0], atol=1e-9)
+    median = np.abs(((kemar.azimuth_deg + 180.0) % 180.0)) < 1e-6
+    median |= np.abs(kemar.azimuth_deg % 180.0) < 1e-6
+    # KEMAR is the left ear mirrored: no interaural cue in the median plane at all ...
+    assert np.abs(_ild_db(kemar)[median]).max() < 1e-6
+    # ... the robot's ears have one: >= 1.5 dB mean |ILD| over 4-12 kHz there, and it
+    # differs between front-up and back-down (the tilt moves them opposite ways).
+    ild = _ild_db(m)
+    assert np.abs(ild[median]).mean() >= 1.5
+    up = m.nearest_index(sph_to_vec(0.0, 30.0))
+    down = m.nearest_index(sph_to_vec(180.0, 30.0))
+    assert np.abs(ild[up] - ild[down]).mean() >= 1.5
+    # The rotation keeps each direction's lateral angle: interaural delays move < 40 us.
+    itd_k = np.diff(kemar.onsets(), axis=1)[:, 0]
+    itd_m = np.diff(m.onsets(), axis=1)[:, 0]
+    assert np.median(np.abs(itd_k - itd_m)) / m.sample_rate < 40e-6
+    with pytest.raises(ConfigError, match="tilt_deg"):
+        tilted_right_pinna(kemar, 60.0, name="x")

@@ -487,6 +487,49 @@ def _load_sofa(path: Path, sample_rate: int, name: str | None = None) -> HRTF:
 # --------------------------------------------------------------------------------------
 
 
+MUSASHI_RIGHT_PINNA_TILT_DEG = 10.0
+"""Tilt (deg) of the robot's right pinna about the interaural axis, relative to the left.
+
+Why the robot's ears are not mirror images: with mirror-symmetric ears (MIT KEMAR's
+normal-pinna set is the left ear mirrored), every direction in the median plane gives
+ILD = 0 and IPD = 0 at every frequency, so interaural features (the paper's only input to
+SSDENet) cannot tell front from back or up from down there, and no network can. The
+paper's robot discriminates top and bottom in the median plane (its Fig. 12e), which needs
+interaural spectral differences: hand-mounted ear units (and human ears) are not exact
+mirror images. 10 deg moves the right ear's pinna notch by about one KEMAR elevation step
+(the notch runs 6.4-11.3 kHz over -40..90 deg), an asymmetry of the order that human pinnae
+show in orientation."""
+
+
+def tilted_right_pinna(base: HRTF, tilt_deg: float, *, name: str) -> HRTF:
+    """``base`` with its right ear's pinna turned by ``tilt_deg`` about the interaural axis.
+
+    The right ear hears direction ``d`` as ``base``'s right ear hears ``R_y(tilt) d``
+    (``R_y`` a rotation about the head's y axis, the interaural axis: positive tilts the
+    pinna's front edge down, so a source in front sounds to it as if higher, a source behind
+    as if lower). A rotation about the interaural axis keeps each direction's lateral angle,
+    and so the interaural time difference, while moving the pinna's spectral features along
+    the cone of confusion. Right-ear responses come from :meth:`HRTF.hrirs_for` with
+    ``mode="interpolated"`` (rotated directions below the base set's lowest elevation fall
+    back to the nearest measured one); the left ear is unchanged. Directions are the base
+    set's; the result is normalized like a loaded set.
+    """
+    if not np.isfinite(tilt_deg) or abs(tilt_deg) > 45.0:
+        raise ConfigError(f"tilt_deg must be within +-45 deg, got {tilt_deg}")
+    a = math.radians(float(tilt_deg))
+    rot = np.array([[math.cos(a), 0.0, -math.sin(a)], [0.0, 1.0, 0.0], [math.sin(a), 0.0, math.cos(a)]])
+    dirs = np.asarray(base.directions)
+    right = base.hrirs_for(dirs @ rot.T, mode="interpolated")[:, 1]
+    hrir = np.stack([np.asarray(base.hrir)[:, 0], right], axis=1)
+    return HRTF._from_measurement(hrir, dirs, base.sample_rate, name=name, distance_m=base.distance_m,
+                                  source=f"{base.source}; right pinna tilted {tilt_deg:g} deg about the interaural axis")
+
+
+@functools.lru_cache(maxsize=4)
+def _musashi(sample_rate: int) -> HRTF:
+    return tilted_right_pinna(_load_sofa(KEMAR_PATH, sample_rate, name="kemar"), MUSASHI_RIGHT_PINNA_TILT_DEG, name="musashi")
+
+
 class HRTF:
     """A set of head-related impulse responses on a set of directions (immutable).
 
@@ -571,7 +614,9 @@ class HRTF:
         ----------
         name_or_path : str or os.PathLike
             ``"kemar"`` (the bundled MIT KEMAR normal-pinna set, 710 directions, elevation
-            -40..90 deg), ``"spherical"`` (:meth:`spherical_head` with defaults) or the path of
+            -40..90 deg), ``"musashi"`` (the robot's ears: KEMAR with the right pinna tilted
+            by :data:`MUSASHI_RIGHT_PINNA_TILT_DEG`, see :func:`tilted_right_pinna`),
+            ``"spherical"`` (:meth:`spherical_head` with defaults) or the path of
             a SOFA file. Files may use any sample rate (resampled with
             :func:`scipy.signal.resample_poly`), any number of directions, spherical or
             cartesian ``SourcePosition``; the receiver with the larger y in
@@ -594,12 +639,14 @@ class HRTF:
             return cls.spherical_head(sample_rate=int(sample_rate))
         if isinstance(name_or_path, str) and name_or_path == "kemar":
             return _load_sofa(KEMAR_PATH, int(sample_rate), name="kemar")
+        if isinstance(name_or_path, str) and name_or_path == "musashi":
+            return _musashi(int(sample_rate))
         if not isinstance(name_or_path, (str, os.PathLike)):
-            raise HRTFError(f"expected 'kemar', 'spherical' or a SOFA path, got {name_or_path!r}")
+            raise HRTFError(f"expected 'kemar', 'musashi', 'spherical' or a SOFA path, got {name_or_path!r}")
         path = Path(name_or_path)
         if isinstance(name_or_path, str) and not path.exists() and path.suffix == "" \
                 and len(path.parts) == 1:
-            raise HRTFError(f"unknown HRTF {name_or_path!r}: expected 'kemar', 'spherical' or "
+            raise HRTFError(f"unknown HRTF {name_or_path!r}: expected 'kemar', 'musashi', 'spherical' or "
                             "the path of a SimpleFreeFieldHRIR .sofa file")
         return _load_sofa(path, int(sample_rate))
 
