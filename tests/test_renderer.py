@@ -338,3 +338,43 @@ def test_fft_size_growth_is_seamless(kemar):
 
     grown, plain = stream(True), stream(False)
     np.testing.assert_allclose(grown, plain, atol=1e-5 * np.abs(plain).max())
+
+
+def test_renderers_of_one_hrtf_share_its_tables_bit_for_bit(kemar, spherical, monkeypatch):
+    """What a renderer derives from its HRTF alone is built once and shared by the next
+    renderers of that HRTF; a renderer over shared tables renders the same samples."""
+    room = room_preset("car_cabin")
+    head = np.asarray(room.listener)
+    x = np.random.default_rng(5).standard_normal(6000)
+
+    def run(**options):
+        r = BinauralRenderer(kemar, room, rng=np.random.default_rng(3), **options)  # background and late tail on
+        r.add_source("a", x, head + [0.8, 0.1, 0.05], level_db=75, start=0)
+        r.add_source("b", x[::-1], head + [-0.2, -0.4, 0.1], level_db=70, start=900)
+        blocks = []
+        for k in range(12):
+            r.set_head_pose(head, rotation_zyx(4.0 * k))
+            blocks.append(r.render_block())
+        return r, np.concatenate(blocks, axis=1)
+
+    renderer_module.clear_hrtf_tables()
+    first, a = run()  # builds the tables
+    second, b = run()  # finds them
+    assert second.tables is first.tables and second.tables.ident == kemar.ident
+    assert second._table is first._table and second._short is first._short and second._directions is first._directions
+    assert np.array_equal(a, b)
+    renderer_module.clear_hrtf_tables()
+    third, c = run()  # freshly built again
+    assert third.tables is not first.tables and np.array_equal(a, c)
+    with pytest.raises(ValueError, match="read-only"):
+        third._table[0, 0, 0] = 1.0  # one renderer cannot change what another renders
+    # Another reflection length is another table of the same HRTF's set.
+    short = BinauralRenderer(kemar, room, rng=np.random.default_rng(0), reflection_taps=64)
+    assert short.tables is third.tables and short._short.shape[-1] == 2 * 65 and third._short.shape[-1] == 2 * 129
+    with pytest.raises(ConfigError, match="reflection_taps"):
+        BinauralRenderer(kemar, room, rng=np.random.default_rng(0), reflection_taps=2)
+    # Another HRTF has its own; only the most recently used are kept.
+    monkeypatch.setattr(renderer_module, "HRTF_TABLES_KEPT", 1)
+    other = BinauralRenderer(spherical, room, rng=np.random.default_rng(0))
+    assert other.tables is not third.tables and other.tables.ident == spherical.ident
+    assert renderer_module.hrtf_tables(kemar) is not third.tables  # evicted, so built anew

@@ -55,9 +55,11 @@ field, RMS pressure ``20 uPa * 10**(L/20) / r`` at distance r (before the head's
 
 from __future__ import annotations
 
+import collections
 import copy
 import dataclasses
 import math
+import threading
 from typing import Protocol
 
 import numpy as np
@@ -170,7 +172,9 @@ class BinauralRenderer:
     Parameters
     ----------
     hrtf : acoustic_sim.acoustics.hrtf.HRTF
-        The ears. Its sample rate must equal ``sample_rate``.
+        The ears. Its sample rate must equal ``sample_rate``. What the renderer derives
+        from the HRTF alone is built once and shared with other renderers of the same HRTF
+        (:func:`hrtf_tables`).
     room : acoustic_sim.acoustics.room.Room
     rng : numpy.random.Generator
         The only source of randomness (the late tails, the background and ego noise).
@@ -231,16 +235,15 @@ class BinauralRenderer:
         self.reflection_turn_deg = float(reflection_turn_deg)
         self.reflection_move_m = float(reflection_move_m)
         self._turn_cos = math.cos(math.radians(self.reflection_turn_deg))
-        self._table = fractional_hrir_table(hrtf.hrir, FRACTIONAL_PHASES)
-        self._taps = hrtf.hrir.shape[-1] + 1
+        self.tables = hrtf_tables(hrtf)
+        """The HRTF's derived tables, shared with every renderer of the same HRTF."""
+        self._table = self.tables.hrir
+        self._taps = self.tables.taps
         short = min(reflection_taps, hrtf.hrir.shape[-1])
-        fade = np.ones(short)
-        fade[-short // 4 :] = np.hanning(2 * (short // 4))[short // 4 :]
-        self._short = fractional_hrir_table(hrtf.hrir[..., :short] * fade, FRACTIONAL_PHASES)
+        self._short = self.tables.short_hrir(short)
         self._short_taps = short + 1
-        self._directions = DirectionLookup(hrtf)
+        self._directions = self.tables.directions
         self._band_weights: dict = {}
-        self._diffuse = None
         self._bus_filter = None  # (2, L) the room's late tail after _bus_start, shared by all sources
         longest_block = math.ceil(sample_rate / FRAME_RATE)
         self._bus_start = max(BUS_START, 1 << (longest_block - 1).bit_length())
@@ -646,9 +649,7 @@ class BinauralRenderer:
 
     # -- the late tail --------------------------------------------------------------------
     def _diffuse_field(self) -> tuple:
-        if self._diffuse is None:
-            self._diffuse = (self.hrtf.diffuse_field_power(1024), self.hrtf.diffuse_field_coherence(1024))
-        return self._diffuse
+        return self.tables.diffuse_field()
 
     def _ensure_bus(self) -> np.ndarray:
         """The room's late tail after :data:`BUS_START` (zero before), made once per
@@ -722,6 +723,7 @@ class DirectionLookup:
         grid = sph_to_vec(az[None, :], el[:, None])
         self.table = np.asarray(hrtf.nearest_index(grid.reshape(-1, 3)), dtype=np.int64).reshape(el.size, az.size)
         self._flat = self.table.ravel()
+        self.table.flags.writeable = self._flat.flags.writeable = False  # shared (HRTFTables)
 
     def lookup(self, unit_vectors: np.ndarray) -> np.ndarray:
         v = unit_vectors
@@ -764,30 +766,9 @@ class BackgroundNoise:
 
         self.rng = rng
         self.gain = float(db_spl_to_pa(level_db))
-        coh = hrtf.diffuse_field_coherence(1024)
-        freqs = np.fft.rfftfreq(1024, 1.0 / sample_rate)
-        below = np.flatnonzero(coh < 0.5)
-        fc = float(np.clip(freqs[below[0]] if below.size else 700.0, 200.0, 2000.0))
-        self.crossover_hz = fc
-        # -4.5 dB/octave tilt: a first-order shelf cascade approximates it over 100 Hz-10 kHz.
-        zeros = [-2 * np.pi * f for f in (250.0, 1300.0, 7000.0)]
-        poles = [-2 * np.pi * f for f in (100.0, 550.0, 3000.0)]
-        z, p, k = signal.bilinear_zpk(zeros, poles, 1.0, sample_rate)
-        tilt = signal.zpk2sos(z, p, k)
-        high = signal.butter(2, fc, "high", fs=sample_rate, output="sos")
-        # Mid shelf: (s^2 + 2^(3/4) s + sqrt 2) / (sqrt 2 (s^2 + sqrt 2 s + 1)) at the
-        # Butterworth's pre-warped cut-off, through the same bilinear transform.
-        wa = 2.0 * sample_rate * np.tan(np.pi * fc / sample_rate)
-        mid_zeros = np.roots([1.0, 2.0**0.75, np.sqrt(2.0)]) * wa
-        mid_poles = np.roots([1.0, np.sqrt(2.0), 1.0]) * wa
-        z, p, k = signal.bilinear_zpk(mid_zeros, mid_poles, 1.0 / np.sqrt(2.0), sample_rate)
-        self.sos_mid = np.vstack([tilt, signal.zpk2sos(z, p, k)])
-        self.sos_side = np.vstack([tilt, high * np.array([1.0 / np.sqrt(2.0)] * 3 + [1.0] * 3)])
-        # Normalize to unit RMS per ear for white input, measured once on a long burst.
-        probe = np.random.default_rng(0).standard_normal((2, 1 << 17))
-        m = signal.sosfilt(self.sos_mid, probe[0])
-        side = signal.sosfilt(self.sos_side, probe[1])
-        self.norm = 1.0 / np.sqrt(np.mean((m + side) ** 2))
+        design = hrtf_tables(hrtf).background_filters(sample_rate)
+        self.crossover_hz = design.crossover_hz
+        self.sos_mid, self.sos_side, self.norm = design.sos_mid, design.sos_side, design.norm
         self.zi_mid = np.zeros((self.sos_mid.shape[0], 2))
         self.zi_side = np.zeros((self.sos_side.shape[0], 2))
         self._signal = signal
@@ -821,3 +802,166 @@ class BackgroundNoise:
         mid *= g
         side *= g
         return np.stack([mid + side, mid - side])
+
+
+# -- tables shared by every renderer of one HRTF -----------------------------------------------
+
+HRTF_TABLES_KEPT = 4
+"""HRTFs whose derived tables :func:`hrtf_tables` keeps (the least recently used goes
+first): about 31 MB each for the bundled KEMAR set."""
+
+
+@dataclasses.dataclass(frozen=True)
+class BackgroundFilters:
+    """The filters of :class:`BackgroundNoise` for one HRTF and sample rate (see there).
+
+    Attributes
+    ----------
+    crossover_hz : float
+        Where the HRTF's diffuse-field coherence falls to 0.5 (clipped to 200-2000 Hz).
+    sos_mid, sos_side : numpy.ndarray, shape (n_sections, 6)
+        Second-order sections of the mid and side noises (tilt included).
+    norm : float
+        Gain that makes each ear's noise unit RMS for unit white input.
+    """
+
+    crossover_hz: float
+    sos_mid: np.ndarray
+    sos_side: np.ndarray
+    norm: float
+
+
+def _background_filters(coherence: np.ndarray, sample_rate: int) -> BackgroundFilters:
+    """Design :class:`BackgroundFilters` from a diffuse-field coherence (1024-point rFFT bins)."""
+    from scipy import signal
+
+    freqs = np.fft.rfftfreq(1024, 1.0 / sample_rate)
+    below = np.flatnonzero(coherence < 0.5)
+    fc = float(np.clip(freqs[below[0]] if below.size else 700.0, 200.0, 2000.0))
+    # -4.5 dB/octave tilt: a first-order shelf cascade approximates it over 100 Hz-10 kHz.
+    zeros = [-2 * np.pi * f for f in (250.0, 1300.0, 7000.0)]
+    poles = [-2 * np.pi * f for f in (100.0, 550.0, 3000.0)]
+    z, p, k = signal.bilinear_zpk(zeros, poles, 1.0, sample_rate)
+    tilt = signal.zpk2sos(z, p, k)
+    high = signal.butter(2, fc, "high", fs=sample_rate, output="sos")
+    # Mid shelf: (s^2 + 2^(3/4) s + sqrt 2) / (sqrt 2 (s^2 + sqrt 2 s + 1)) at the
+    # Butterworth's pre-warped cut-off, through the same bilinear transform.
+    wa = 2.0 * sample_rate * np.tan(np.pi * fc / sample_rate)
+    mid_zeros = np.roots([1.0, 2.0**0.75, np.sqrt(2.0)]) * wa
+    mid_poles = np.roots([1.0, np.sqrt(2.0), 1.0]) * wa
+    z, p, k = signal.bilinear_zpk(mid_zeros, mid_poles, 1.0 / np.sqrt(2.0), sample_rate)
+    sos_mid = np.vstack([tilt, signal.zpk2sos(z, p, k)])
+    sos_side = np.vstack([tilt, high * np.array([1.0 / np.sqrt(2.0)] * 3 + [1.0] * 3)])
+    # Normalize to unit RMS per ear for white input, measured once on a long burst.
+    probe = np.random.default_rng(0).standard_normal((2, 1 << 17))
+    m = signal.sosfilt(sos_mid, probe[0])
+    side = signal.sosfilt(sos_side, probe[1])
+    norm = 1.0 / np.sqrt(np.mean((m + side) ** 2))
+    return BackgroundFilters(crossover_hz=fc, sos_mid=sos_mid, sos_side=sos_side, norm=float(norm))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+class HRTFTables:
+    """What the renderer derives from its HRTF alone, built once and shared by every
+    renderer of that HRTF.
+
+    The fractional-delay HRIR tables and the direction lookup take about 0.3 s to build
+    for KEMAR, which every :class:`BinauralRenderer` used to pay, i.e. every task
+    episode's reset. They depend only on the HRTF's responses, directions and sample rate,
+    all of which :attr:`~acoustic_sim.acoustics.hrtf.HRTF.ident` hashes, and an HRTF is
+    immutable; so :func:`hrtf_tables` keeps one set per ident. The arrays are read-only:
+    one renderer cannot change what another renders.
+
+    Parameters
+    ----------
+    hrtf : acoustic_sim.acoustics.hrtf.HRTF
+
+    Attributes
+    ----------
+    ident : str
+        The HRTF's ident (the cache key).
+    hrir : numpy.ndarray, shape (D, FRACTIONAL_PHASES, 2 * (K + 1)), float32
+        The full HRIRs at every fractional delay (:func:`fractional_hrir_table`): the
+        direct path's responses.
+    taps : int
+        K + 1: samples per ear in a row of :attr:`hrir`.
+    directions : DirectionLookup
+        Nearest HRTF direction of any head-frame direction.
+    """
+
+    def __init__(self, hrtf) -> None:
+        self._hrtf = hrtf
+        self.ident: str = hrtf.ident
+        self.hrir = _read_only(fractional_hrir_table(hrtf.hrir, FRACTIONAL_PHASES))
+        self.taps = int(hrtf.hrir.shape[-1]) + 1
+        self.directions = DirectionLookup(hrtf)
+        self._short: dict[int, np.ndarray] = {}
+        self._diffuse: tuple[np.ndarray, np.ndarray] | None = None
+        self._background: dict[int, BackgroundFilters] = {}
+        self._lock = threading.Lock()
+
+    def short_hrir(self, taps: int) -> np.ndarray:
+        """The HRIRs' first ``taps`` samples (4..K), faded out over their last quarter, at
+        every fractional delay: shape (D, FRACTIONAL_PHASES, 2 * (taps + 1)), float32,
+        read-only (the reflections' responses)."""
+        if not isinstance(taps, (int, np.integer)) or not 4 <= taps <= self.taps - 1:
+            raise ConfigError(f"reflection_taps must be an integer 4..{self.taps - 1} (the HRIR length), got {taps!r}")
+        taps = int(taps)
+        with self._lock:
+            if taps not in self._short:
+                hrir = self._hrtf.hrir
+                fade = np.ones(taps)
+                fade[-taps // 4 :] = np.hanning(2 * (taps // 4))[taps // 4 :]
+                self._short[taps] = _read_only(fractional_hrir_table(hrir[..., :taps] * fade, FRACTIONAL_PHASES))
+            return self._short[taps]
+
+    def diffuse_field(self) -> tuple[np.ndarray, np.ndarray]:
+        """The HRTF's diffuse-field power (2, 513) and interaural coherence (513,) on a
+        1024-point rFFT grid, read-only (the late tails' spectrum and coherence)."""
+        with self._lock:
+            if self._diffuse is None:
+                h = self._hrtf
+                self._diffuse = (_read_only(np.array(h.diffuse_field_power(1024))),
+                                 _read_only(np.array(h.diffuse_field_coherence(1024))))
+            return self._diffuse
+
+    def background_filters(self, sample_rate: int) -> BackgroundFilters:
+        """The :class:`BackgroundNoise` filters at ``sample_rate`` (Hz)."""
+        coherence = self.diffuse_field()[1]
+        with self._lock:
+            if sample_rate not in self._background:
+                self._background[sample_rate] = _background_filters(coherence, int(sample_rate))
+            return self._background[sample_rate]
+
+
+_TABLES: collections.OrderedDict[str, HRTFTables] = collections.OrderedDict()
+_TABLES_LOCK = threading.Lock()
+
+
+def hrtf_tables(hrtf) -> HRTFTables:
+    """The :class:`HRTFTables` of ``hrtf``: built on first use, then shared (keyed by the
+    HRTF's ident; the :data:`HRTF_TABLES_KEPT` most recently used are kept)."""
+    key = hrtf.ident
+    with _TABLES_LOCK:
+        tables = _TABLES.get(key)
+        if tables is not None:
+            _TABLES.move_to_end(key)
+            return tables
+    tables = HRTFTables(hrtf)  # outside the lock: building takes a while
+    with _TABLES_LOCK:
+        tables = _TABLES.setdefault(key, tables)
+        _TABLES.move_to_end(key)
+        while len(_TABLES) > HRTF_TABLES_KEPT:
+            _TABLES.popitem(last=False)
+    return tables
+
+
+def clear_hrtf_tables() -> None:
+    """Forget every cached :class:`HRTFTables` (frees their memory; the next renderer of
+    each HRTF builds them again)."""
+    with _TABLES_LOCK:
+        _TABLES.clear()
