@@ -203,6 +203,29 @@ def test_request_errors():
     assert (e.kind, e.label, e.source, e.sample) == ("distractor", "ratchet", "loudspeaker", s)
 
 
+def test_draw_is_the_emitters_own_stream():
+    """``draw`` gives the sounds an emitter's requests would have played, in turn."""
+    requested = SoundEvents(np.random.default_rng(3), emitters=["voice", "loudspeaker"])
+    drawn = SoundEvents(np.random.default_rng(3), emitters=["voice", "loudspeaker"])
+    for ev in (requested, drawn):
+        ev.reset(sample=0)
+    s1 = requested.schedule_distractor(0.1, "human_voice")
+    s2 = requested.schedule_distractor(0.2, "key_turning")
+    played = requested.process(s2 + 706, [s2 + 706.0])
+    assert [e.sample for e in played] == [s1, s2]
+    x1, x2 = drawn.draw("loudspeaker", "human_voice"), drawn.draw("loudspeaker", "key_turning")
+    assert np.array_equal(x1, played[0].signal) and np.array_equal(x2, played[1].signal)
+    # Another emitter's generator is another stream, untouched by the loudspeaker's draws.
+    assert not np.array_equal(drawn.draw("voice", "human_voice"), x1)
+    assert np.sqrt(np.mean(x1**2)) == pytest.approx(1.0, rel=1e-6)
+    with pytest.raises(ConfigError, match="unknown emitter 'tuba'"):
+        drawn.draw("tuba", "human_voice")
+    with pytest.raises(ConfigError, match="no site 'car/ignition'"):
+        drawn.draw("ignition", "key_turning")
+    with pytest.raises(ConfigError, match="unknown sound class"):
+        drawn.draw("loudspeaker", "trumpet")
+
+
 # -- ego-noise -------------------------------------------------------------------------------------
 
 

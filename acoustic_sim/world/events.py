@@ -613,6 +613,39 @@ class SoundEvents:
         """A car horn at time ``t`` (s): outside the cabin, or from the room's loudspeaker."""
         return self.schedule_distractor(t, "car_horn", signal=signal)
 
+    def draw(self, emitter: str, label: str) -> np.ndarray:
+        """A fresh natural instance of sound class ``label`` from ``emitter``'s own generator.
+
+        What a request of that emitter plays when it passes no signal of its own: the next
+        draw of the same stream. For a caller that plays an emitter's sounds itself (a task
+        placing the room loudspeaker's sounds with
+        :meth:`tasks.base.HearingTaskEnv.schedule_sound`) and wants the sounds the
+        emitter would have made.
+
+        Parameters
+        ----------
+        emitter : str
+            One of this scene's emitters (:attr:`emitters`).
+        label : str
+            A sound class (``sounds.SOUND_CLASSES``).
+
+        Returns
+        -------
+        numpy.ndarray, shape (n,)
+            Unit-RMS mono signal at :attr:`sample_rate`.
+
+        Raises
+        ------
+        ConfigError
+            If the scene has no such emitter or the class is unknown.
+        """
+        if emitter not in EMITTERS:
+            raise ConfigError(f"draw: unknown emitter {emitter!r}; valid: {', '.join(EMITTERS)}")
+        self._need_emitter(emitter, "draw")
+        if label not in sounds.SOUND_CLASSES:
+            raise ConfigError(f"draw: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
+        return self._draw(emitter, label)
+
     def _draw(self, emitter: str, label: str) -> np.ndarray:
         # Requested sounds are drawn when requested (a task's reset), not in a control step.
         return sounds.generate(label, self._rngs[emitter], sample_rate=self.sample_rate)
