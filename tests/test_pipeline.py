@@ -178,7 +178,7 @@ def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
     out = {}
     for frames in (1, 12):
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
-                             direction_frames=frames)
+                             direction_frames=frames, onset_ratio=None)
         out[frames] = p.process(audio)
     has = {f: np.array([bool(q.directions) for q in ps]) for f, ps in out.items()}
     last = int(np.flatnonzero(has[1]).max())  # the last frame that still holds burst energy
@@ -190,3 +190,27 @@ def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
         assert abs(((est.azimuth_deg + 90.0 + 180.0) % 360.0) - 180.0) <= 30.0
     with pytest.raises(ConfigError, match="direction_frames"):
         AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, direction_frames=0)
+
+
+def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
+    """A steady noise from the right: with the gate, only the frames of its onset (and the
+    chance frames where a bin's power doubles) give a direction; without it, every frame."""
+    rng = np.random.default_rng(5)
+    r = BinauralRenderer(kemar, room_preset("anechoic"), rng=rng)
+    r.set_head_pose(np.zeros(3), rotation_zyx(0.0))
+    sig = np.concatenate([np.zeros(22050), sounds.white_noise(1.0, rng)])
+    r.add_source("s", sig, 1.5 * sph_to_vec(-90.0, 0.0), level_db=80.0, start=0)
+    audio = Microphone(rng=rng)(r.render(len(sig) / 44100))
+    counts = {}
+    for ratio in (None, 2.0):
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
+                             direction_frames=1, onset_ratio=ratio)
+        out = p.process(audio)
+        onset = int(np.ceil(22050 / 705.6))  # the first frame that reaches the noise
+        est = out[onset + 2].directions.get(pipe.classes[0])
+        assert est is not None and abs(((est.azimuth_deg + 90.0 + 180.0) % 360.0) - 180.0) <= 30.0
+        counts[ratio] = sum(q.directions[pipe.classes[0]].n_bins for q in out[onset + 6 :] if q.directions)
+    # Steady noise: a bin's power doubles from one frame to the next in a minority of frames.
+    assert counts[2.0] < 0.35 * counts[None]
+    with pytest.raises(ConfigError, match="onset_ratio"):
+        AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, onset_ratio=0.5)
