@@ -12,6 +12,10 @@ CallResponse
     no person (the loudspeaker, a front-back confusion) is remembered and not checked again;
     a voice from there is tried at its front-back mirror image instead.
 
+While the target sound is heard and not yet placed elsewhere, the lever stops and the robot
+listens (the motion resumes when the evidence puts the sound outside the accepted region,
+or it stops).
+
 "Heard from a direction" is a vote over the last frames: a frame votes for the class when
 its probability is at least ``threshold`` and the estimated direction lies in the accepted
 region (with some confidence), against it when the class is heard from elsewhere. The robot
@@ -110,18 +114,23 @@ class LeverPolicy(TaskPolicy):
     def reset(self, obs, info) -> None:
         super().reset(obs, info)
         self.released = False
+        self.hold = False
+        self.motion_s = 0.0
         self._arm = lever_arm_angles(self.side, 0.0)
 
     def lever_target_deg(self) -> float:
-        return float(np.clip(self.rate_deg_s * (self.time_s - self.delay_s), 0.0, self.max_deg))
+        return float(np.clip(self.rate_deg_s * (self.motion_s - self.delay_s), 0.0, self.max_deg))
 
     def should_release(self, obs, info) -> bool:
+        """Decide from this observation; may set ``self.hold`` to pause the motion."""
         raise NotImplementedError
 
     def act(self, obs, info) -> np.ndarray:
         if not self.released and self.should_release(obs, info):
             self.released = True
         if not self.released:
+            if not self.hold:
+                self.motion_s += CONTROL_DT
             self._arm = lever_arm_angles(self.side, self.lever_target_deg())
         values = self.layout.arm(self.side, self._arm)
         values[f"grasp_{self.side}"] = -1.0 if self.released else 1.0
@@ -159,7 +168,15 @@ class ScriptedReverseAlarm(LeverPolicy):
         on, d = heard(obs, self.label, self.threshold, self.min_conf)
         pro = on and d is not None and self.accept(d)
         con = on and d is not None and not self.accept(d)
-        return self.evidence.push(pro, con)
+        decided = self.evidence.push(pro, con)
+        # Hearing the sound, stop moving and listen, unless most of the recent frames place
+        # it outside the accepted region (another source's: carry on). Moving on while the
+        # direction is still being settled would push the lever past the position that
+        # made the sound.
+        pros = sum(p for p, _ in self.evidence.frames)
+        cons = sum(c for _, c in self.evidence.frames)
+        self.hold = on and pros >= cons
+        return decided
 
 
 POLICY_CLASSES = {"reverse-alarm": ScriptedReverseAlarm}

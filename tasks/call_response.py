@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -43,63 +44,18 @@ class CallResponseEnv(HearingTaskEnv):
     (60 deg vertical, the horizontal angle of ``image_size``) and not occluded (a ray from the
     camera reaches the head first: a geometric check with ``mj_ray``, no rendering).
 
-    Action Space
-    ------------
-    ``Box(-1, 1, (16,), float32)``: normalized targets; -1 and +1 are the ends of the range.
-
-    =====  ==========================  ===============  =====
-    idx    channel                     range            unit
-    =====  ==========================  ===============  =====
-    0      neck_yaw (+ left)           -90 .. 90        deg
-    1      neck_pitch (+ nose down)    -45 .. 45        deg
-    2      eye_yaw (+ left)            -30 .. 30        deg
-    3      eye_pitch                   -25 .. 25        deg
-    4-8    left arm (shoulder pitch, roll, yaw, elbow, wrist)  joint ranges  deg
-    9-13   right arm, same joints      joint ranges     deg
-    14     left_wheel (+ forward)      -5 .. 5          rad/s
-    15     right_wheel (+ forward)     -5 .. 5          rad/s
-    =====  ==========================  ===============  =====
-
-    The wheels (0.30 m radius, 0.60 m apart) are velocity servos: equal speeds drive, opposite
-    speeds turn on the spot (right wheel forward turns left, 1 rad/s each way = 57 deg/s).
-
-    Observation Space
-    -----------------
-    ``Dict``:
-
-    ============  ==========  ===================================================================
-    key           shape       meaning
-    ============  ==========  ===================================================================
-    joint_pos     (14,)       rad: neck yaw, pitch; eye yaw, pitch; left arm 5; right arm 5
-    joint_vel     (14,)       rad/s, same order (clipped to +-50)
-    base          (3,)        the wheelchair's odometry: heading since the start (rad, +-pi, +
-                              left), forward speed (m/s), yaw rate (rad/s)
-    class_prob    (6,)        the percept's fused class probabilities (car_horn, reverse_alarm,
-                              ratchet, gearshift, key_turning, human_voice)
-    class_dir     (6, 3)      per class, the estimated direction (unit vector, head frame: x
-                              forward, y left, z up); zeros when the class has no estimate
-    class_conf    (6,)        per class, the estimate's confidence 0..1 (0: no estimate)
-    existence     (D,)        SSDENet existence map of the most likely class that has an
-                              estimate, over the D (327) grid directions; zeros if none
-    audio         (2, 706)    optional (``audio_obs``): the digital ear block, full scale
-    spectra       (2, 1025)   optional (``spectra_obs``): |X|^2 of the ear frame, full scale
-    image         (H, W, 3)   optional (``image_obs``): the right eye camera, uint8
-    ============  ==========  ===================================================================
-
-    Rewards
-    -------
-    +1 when the person comes into view, 0 otherwise.
+    {spaces_and_rewards}
 
     Starting State
     --------------
     The wheelchair at a random point 1.5 m or more from the walls with a random heading, the
     robot in its rest pose (looking straight ahead), after 0.5 s of listening (as in
-    ReverseAlarm). The person at a random bearing (uniform,
-    behind included, but at least 50 deg off the line of sight: out of view) and distance
-    (1.4-2.4 m), facing the robot; the loudspeaker at a bearing at
-    least 60 deg away from the person's, 1.3-2.5 m away. The first call at 0.3-1.5 s; the
-    loudspeaker plays speech with probability 0.8 (1-2 phrases) and another sound (a horn or
-    a key turning) with probability 0.4, at 0.5-25 s. Background noise 35-45 dB SPL.
+    ReverseAlarm). The person at a random bearing (uniform, behind included, but at least
+    50 deg off the line of sight: out of view) and distance (1.4-2.4 m), facing the robot;
+    the loudspeaker at a bearing at least 60 deg away from the person's, 1.3-2.5 m away. The
+    first call at 0.3-1.5 s; the loudspeaker plays speech with probability 0.8 (1-2 phrases)
+    and another sound (a horn or a key turning) with probability 0.4, at 0.5-25 s, 75 dB SPL
+    at 1 m. Background noise 35-45 dB SPL.
 
     Episode End
     -----------
@@ -112,18 +68,9 @@ class CallResponseEnv(HearingTaskEnv):
 
     Arguments
     ---------
-    ``render_mode`` (str | None, default None): ``"rgb_array"`` for :meth:`render`.
-    ``profile`` (str, default "paper"): auditory models, ``"paper"`` or ``"fast"``.
-    ``hrtf`` (str, default "kemar"): the ears.
-    ``max_episode_s`` (float | None, default None): the task's time limit in s (None: 30 s).
     ``call_interval_s`` (tuple, default (5.0, 7.0)): seconds from one call's start to the next.
     ``distractors`` (bool, default True): schedule the loudspeaker's sounds.
-    ``audio_obs`` (bool, default False): add ``audio``.
-    ``spectra_obs`` (bool, default False): add ``spectra``.
-    ``image_obs`` (bool, default False): add ``image``.
-    ``image_size`` (tuple, default (120, 160)): (height, width) of ``image`` and of the field of
-    view check, pixels.
-    ``torch_threads`` (int | None, default 1): torch threads while the pipeline runs.
+    {common_arguments}
     """
 
     task = "call-response"
@@ -134,6 +81,18 @@ class CallResponseEnv(HearingTaskEnv):
     other_probability = 0.4
     WHEEL_RADIUS_M = 0.30
     TRACK_M = 0.60
+    spec_action_rows: ClassVar = (
+        ("14", "left_wheel (+ forward)", "-5 .. 5", "rad/s"),
+        ("15", "right_wheel (+ forward)", "-5 .. 5", "rad/s"),
+    )
+    spec_action_notes: ClassVar = ("The wheels (0.30 m radius, 0.60 m apart) are velocity servos: equal speeds drive, "
+                                   "opposite speeds turn on the spot (right wheel forward turns left, 1 rad/s each way "
+                                   "= 57 deg/s).")
+    spec_rewards: ClassVar = "+1 when the person comes into view, 0 otherwise."
+    spec_observation_rows: ClassVar = (
+        ("base", "(3,)", ("the wheelchair's odometry: heading since the start (rad, +-pi, + left), forward speed "
+                          "(m/s), yaw rate (rad/s)")),
+    )
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
                  max_episode_s: float | None = None, call_interval_s: tuple = (5.0, 7.0), distractors: bool = True,
@@ -200,10 +159,14 @@ class CallResponseEnv(HearingTaskEnv):
         speech_times = rng.uniform(0.5, 25.0, size=2)
         other, other_t, other_label = rng.random() < self.other_probability, rng.uniform(0.5, 25.0), rng.choice(["car_horn", "key_turning"])
         if self.distractors:
-            for t in speech_times[: n_speech if speech else 0]:
-                ev.schedule_distractor(self.at(t), "human_voice")
+            plays = [(t, "human_voice") for t in speech_times[: n_speech if speech else 0]]
             if other:
-                ev.schedule_distractor(self.at(other_t), str(other_label))
+                plays.append((other_t, str(other_label)))
+            speaker = self.view.site_position(names.LOUDSPEAKER_SITE)
+            for i, (t, label) in enumerate(plays):
+                # Drawn from the loudspeaker emitter's own generator: the sounds it would play itself.
+                self.schedule_sound(f"loudspeaker{i}", label, ev.draw("loudspeaker", label), speaker, t,
+                                    ev.config.loudspeaker_db, frame="world", detail="loudspeaker")
         self.initial_heading = _yaw(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
         self._update_base()
         self._in_view, self._image_uv = self.person_in_view()
@@ -212,8 +175,7 @@ class CallResponseEnv(HearingTaskEnv):
     def person_in_view(self) -> tuple[bool, tuple[float, float]]:
         """Whether the person's head is in the right eye camera's field of view and not
         occluded, and where (normalized image coordinates u right, v up, each -1..1)."""
-        cam = self.data.cam(names.EYE_CAMERAS[1])  # the view has no camera accessor
-        origin, rot = cam.xpos.copy(), cam.xmat.reshape(3, 3)
+        origin, rot = self.view.camera_pose(names.EYE_CAMERAS[1])
         head = self.view.body_pose(names.PERSON_HEAD_BODY)[0]
         d = head - origin
         c = rot.T @ d  # camera frame: x right, y up, looking along -z

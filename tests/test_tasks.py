@@ -22,7 +22,9 @@ import tasks
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scene
 from policies import make_policy
+from tasks.actions import action_layout
 from tasks.call_response import CallResponseEnv
+from tasks.levers import lever_arm_angles
 from tasks.parking_brake import ParkingBrakeEnv
 from tasks.reverse_alarm import ReverseAlarmEnv
 
@@ -63,14 +65,43 @@ def test_docstring_is_the_spec_and_its_defaults_match_the_signature(cls):
 def test_docstring_lists_every_observation_and_action(cls):
     env = cls(profile="fast", audio_obs=True, spectra_obs=True, image_obs=True)
     doc = inspect.getdoc(cls)
-    if cls is ParkingBrakeEnv:  # refers to ReverseAlarm's tables for the shared parts
-        doc += inspect.getdoc(ReverseAlarmEnv)
     for key in env.observation_space.spaces:
         assert re.search(rf"\b{key}\b", doc), f"observation {key!r} is not in the docstring"
     for name in env.layout.names:
         assert name in doc or name.split("_")[0] in ("left", "right"), f"action {name!r} is not in the docstring"
     assert env.action_space.shape == (16,)
     env.close()
+
+
+@pytest.mark.parametrize("cls", CLASSES)
+def test_docstring_action_table_is_the_actuators_ranges(cls):
+    """The spec's action table (written once in tasks.spec) against the model's control ranges."""
+    doc = inspect.getdoc(cls)
+    layout = action_layout(cls.scene_name)
+    rows = re.findall(r"^(\d+) +(\w+)[^\n]*? (-?\d+) \.\. (-?\d+) +(deg|rad/s|> 0 hold, <= 0 open)$", doc, re.MULTILINE)
+    assert [int(r[0]) for r in rows] == [*range(9), 14, 15], rows
+    for idx, name, lo, hi, unit in rows:
+        ch = layout.channels[int(idx)]
+        to_doc = np.rad2deg if unit == "deg" else float
+        assert ch.name == name and (round(to_doc(ch.low)), round(to_doc(ch.high))) == (int(lo), int(hi)), (ch, lo, hi)
+    assert re.search(r"^9-13 +right arm, same joints +same +deg$", doc, re.MULTILINE)
+    for suffix in names.ARM_JOINT_SUFFIXES:
+        left, right = (layout.channels[layout.index(f"{side}_{suffix}")] for side in ("left", "right"))
+        assert (left.low, left.high) == (right.low, right.high)
+    assert f"``Box(-1, 1, ({len(layout)},), float32)``" in doc
+
+
+def test_spec_placeholders_are_expanded_or_refused():
+    from tasks import spec
+    from tasks.base import HearingTaskEnv
+
+    for cls in CLASSES:
+        assert not re.search(r"^\s*\{\w+\}\s*$", inspect.getdoc(cls), re.MULTILINE), cls
+    assert spec.expand("Head.\n\n    {a}\n", {"a": "one\n\ntwo"}) == "Head.\n\n    one\n\n    two\n"
+    with pytest.raises(ConfigError, match="unknown placeholder {observations}"):
+        type("Broken", (HearingTaskEnv,), {"__doc__": "Spec.\n\n    {observations}\n"})
+    with pytest.raises(ConfigError, match="2 cells"):
+        spec.rst_table(("key", "meaning"), [("a", "b", "c")])
 
 
 def _rollout(env, policy_name, seed, steps):
@@ -215,6 +246,10 @@ def test_bad_arguments_are_config_errors():
         ReverseAlarmEnv(profile="fast", max_episode_s=-1.0)
     with pytest.raises(ConfigError, match="required_teeth"):
         ParkingBrakeEnv(profile="fast", required_teeth=9)
+    with pytest.raises(ConfigError, match="success_window_s"):
+        ParkingBrakeEnv(profile="fast", success_window_s=0.0)
+    with pytest.raises(ConfigError, match="release_timeout_s"):
+        ReverseAlarmEnv(profile="fast", release_timeout_s=float("nan"))
     with pytest.raises(ConfigError, match="call_interval_s"):
         CallResponseEnv(profile="fast", call_interval_s=(1.0, 0.5))
     with pytest.raises(ConfigError, match="render_mode"):
@@ -238,3 +273,121 @@ def test_taught_lever_motions_reach_along_the_arcs():
         assert deg[0] == 0.0 and deg[-1] >= needed and arm.shape == (deg.size, 5)
     with pytest.raises(ConfigError, match="side"):
         lever_motion("middle")
+
+
+# -- sounds placed anywhere ------------------------------------------------------------------------
+
+
+def _quiet_room():
+    """The room scene's coupling with nothing but the task's sounds (no background, no ego-noise)."""
+    from acoustic_sim.world.coupling import Coupling
+    from tasks.soundscape import Soundscape
+
+    c = Coupling.from_scene("room", rng=np.random.default_rng(0), ego_noise=False, background=False)
+    return c, Soundscape(c)
+
+
+def test_a_scheduled_sound_arrives_from_its_direction_at_its_sample():
+    from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND
+
+    c, sc = _quiet_room()
+    head, rot = c.head_position.copy(), c.head_rotation.copy()
+    burst = np.random.default_rng(1).standard_normal(round(0.15 * SAMPLE_RATE))
+    left = sc.schedule_sound("left", "car_horn", burst, head + 1.0 * rot[:, 1], c.time_s + 0.1003, 80.0)
+    right_world = c.frame.to_world(head - 1.0 * rot[:, 1])  # 90 deg right, given in MuJoCo's world frame
+    right = sc.schedule_sound("right", "key_turning", burst, right_world, c.time_s + 0.9007, 80.0, frame="world")
+    np.testing.assert_allclose(right.position, head - rot[:, 1], atol=1e-9)
+    first, blocks, records, starts = c.renderer.sample, [], [], {}
+    for _ in range(90):  # 1.44 s
+        new = sc.begin_block(c.advance())
+        starts.update({r["source"]: c.renderer.sources[r["source"]].start for r in new})
+        records += new
+        blocks.append(c.render())
+        sc.end_block()
+    y = np.concatenate(blocks, axis=1)
+    assert y.shape[1] == c.renderer.sample - first
+    assert starts == {"task/left": left.start, "task/right": right.start}
+    assert set(c.renderer.sources) == {"task/right"}  # the left one is over, reverberation (1 s) included
+    assert [(r["source"], r["time_s"]) for r in records] == [("task/left", left.start / SAMPLE_RATE), ("task/right", right.start / SAMPLE_RATE)]
+    delay = round(1.0 / SPEED_OF_SOUND * SAMPLE_RATE)  # 1 m from the head centre
+    for snd, near, far in ((left, 0, 1), (right, 1, 0)):
+        s0 = snd.start - first
+        window = y[:, s0 : s0 + round(0.2 * SAMPLE_RATE)]
+        peak = np.abs(window).max()
+        assert np.abs(y[:, s0 - 2000 : s0]).max() < 1e-3 * peak  # silence until the scheduled sample
+        onset, onset_far = (int(np.argmax(np.abs(window[e]) > 0.02 * peak)) for e in (near, far))
+        assert -20 <= onset - delay <= 5, (snd.name, onset, delay)  # the direct sound, 1 m away
+        assert onset_far > onset + 10, (snd.name, onset, onset_far)  # the near ear hears it first
+        direct = window[:, onset - 10 : onset + 220]  # the first 5 ms: before the first reflection
+        ild = 10 * np.log10(np.sum(direct[near] ** 2) / np.sum(direct[far] ** 2))
+        assert ild > 10.0, (snd.name, ild)  # left source: louder at the left ear; right: at the right
+
+
+def test_sounds_outside_the_room_play_through_the_wall():
+    c, sc = _quiet_room()
+    head = c.head_position
+    s = sc.schedule_sound("car", "reverse_alarm", np.ones(100), [-3.0, head[1], 1.0], c.time_s + 0.5, 100.0, outside=True)
+    margin, loss = c.outside_margin_m, c.events.config.transmission_loss_db
+    np.testing.assert_allclose(s.position, [margin, head[1], 1.0])
+    assert s.level_db == pytest.approx(100.0 - loss - 20 * np.log10(3.0 + margin))
+
+
+def test_schedule_sound_errors():
+    from acoustic_sim.world.coupling import Coupling
+    from tasks.soundscape import Soundscape
+
+    c, sc = _quiet_room()
+    head, t = c.head_position, c.time_s + 0.2
+    ok = {"signal": np.ones(10), "position": head + [1.0, 0.0, 0.0], "t": t, "level_db": 70.0}
+    sc.schedule_sound("a", "car_horn", **ok)
+    for change, match in (
+        ({"name": "a"}, "exists already"),
+        ({"name": ""}, "non-empty string"),
+        ({"label": "trumpet"}, "unknown sound class"),
+        ({"signal": np.ones((2, 5))}, "1-D"),
+        ({"signal": [np.nan]}, "finite"),
+        ({"level_db": 200.0}, "level_db"),
+        ({"t": c.time_s - 0.1}, "in the past"),
+        ({"t": float("nan")}, "finite time"),
+        ({"frame": "car"}, "frame"),
+        ({"position": [1.0, 2.0]}, "3 finite"),
+        ({"position": [9.0, 1.0, 1.0]}, "not inside room"),
+        ({"outside": True}, "inside the room"),
+        ({"position": [-300.0, 1.0, 1.0], "outside": True, "level_db": 30.0}, "too far or too quiet"),
+    ):
+        args = {"name": "b", "label": "car_horn", **ok, **change}
+        with pytest.raises(ConfigError, match=match):
+            sc.schedule_sound(**args)
+    with pytest.raises(ConfigError, match="linger_s"):
+        Soundscape(c, linger_s=-1.0)
+    model, data = c.model, c.data
+    with pytest.raises(ConfigError, match="renderer"):
+        Soundscape(Coupling(model, data, None, rng=np.random.default_rng(0)))
+
+
+def test_env_schedule_sound_ground_truth():
+    env = ReverseAlarmEnv(profile="fast", distractors=False)
+    with pytest.raises(ConfigError, match="reset"):
+        env.schedule_sound("probe", "car_horn", np.ones(10), [1.0, 1.0, 0.8], 0.1, 70.0)
+    env.reset(seed=0)
+    c = env.coupling
+    point = c.head_position + 0.3 * c.head_rotation[:, 1]  # 90 deg left, inside the cabin
+    snd = env.schedule_sound("probe", "car_horn", np.random.default_rng(0).standard_normal(4410), point, 0.1, 75.0)
+    assert snd.start == round((env.start_s + 0.1) * 44100) and env.task_sounds == [snd]
+    with pytest.raises(ConfigError, match="start_s"):
+        env.schedule_sound("late", "car_horn", np.ones(10), point, float("inf"), 70.0)
+    with pytest.raises(ConfigError, match="in the past"):
+        env.schedule_sound("late", "car_horn", np.ones(10), point, -0.5, 70.0)
+    hold = env.layout.action({**env.layout.arm("left", lever_arm_angles("left", 0.0)), "grasp_left": 1.0})
+    seen = []
+    for _ in range(12):
+        _obs, _r, terminated, _t, info = env.step(hold)
+        seen += [e for e in info["events"] if e["source"] == "task/probe"]
+        probe = [s for s in info["sounding"] if s["source"] == "task/probe"]
+        if probe:
+            break
+    assert not terminated
+    assert seen == [{"kind": "distractor", "label": "car_horn", "source": "task/probe", "time_s": snd.start / 44100, "detail": ""}]
+    assert probe[0]["label"] == "car_horn" and abs(probe[0]["azimuth_deg"] - 90.0) < 3.0
+    assert info["labels"][0] == 1  # car_horn sounding
+    env.close()
