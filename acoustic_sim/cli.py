@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--sound impulse, writes the binaural room impulse response instead (ear pressure per pascal "
         "at 1 m; no noise, no microphone).",
     )
-    r.add_argument("--hrtf", default="kemar", help="'kemar' (bundled MIT KEMAR), 'spherical' (rigid sphere, no pinna) or a SimpleFreeFieldHRIR .sofa file")
+    r.add_argument("--hrtf", default="kemar", help="'kemar' (bundled MIT KEMAR), 'musashi' (KEMAR, right pinna tilted 10 deg), 'spherical' (rigid sphere, no pinna) or a SimpleFreeFieldHRIR .sofa file")
     r.add_argument("--room", default="anechoic", help="anechoic, car_cabin, lab, conference or shoebox:LxWxH (metres; needs --rt60)")
     r.add_argument("--rt60", type=_positive, default=None, help="reverberation time in seconds for shoebox (and to override lab/conference)")
     r.add_argument("--listener", type=_vector, default=None, help="head centre X,Y,Z in metres (room frame); default: the room's listening position")
@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
         "transfer function as the paper did (so the result contains the room). Writes a "
         "SimpleFreeFieldHRIR SOFA file that --hrtf accepts.",
     )
-    m.add_argument("--hrtf", default="kemar", help="the ears being measured: kemar, spherical or a .sofa file")
+    m.add_argument("--hrtf", default="kemar", help="the ears being measured: kemar, musashi, spherical or a .sofa file")
     m.add_argument("--room", default="conference", help="room preset (default: conference, the paper's measurement room)")
     m.add_argument("--rt60", type=_positive, default=None, help="reverberation time in seconds for shoebox rooms")
     m.add_argument("--distance", type=_positive, default=1.5, help="loudspeaker distance in metres (default 1.5)")
@@ -128,7 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
         "viz",
         help="rerun logging cost: ms per frame and MB per minute",
         description="Records 60 s of a cabin episode (scene, percepts, spectrograms, audio, 320x240 eye camera) "
-        "to an .rrd; writes log_ms_per_frame and rrd_mb_per_min. Targets: 1 ms per frame, 30 MB per minute.",
+        "to an .rrd; writes log_ms_per_frame and rrd_mb_per_min. Targets: 1 ms per frame, 30 MB per minute. "
+        "Without --quick, also 'episode': the cost of recording three real ReverseAlarm episodes (fast models) "
+        "through the runner's hook, as `acoustic-sim run --rrd` does, and of rendering one eye-camera image.",
     )
     bv.add_argument("--out", type=Path, default=Path("bench/viz.json"), help="output JSON (default bench/viz.json)")
     bv.add_argument("--quick", action="store_true", help="10 s instead of 60 s")
@@ -156,12 +158,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser(
         "demo",
-        help="render a scene and summarize it (what `make demo` runs)",
-        description="Renders a reverse alarm in front of the head in the car cabin while the head turns, "
-        "writes the ear signals as a WAV and a picture of what the ears received, and prints a summary.",
+        help="one ReverseAlarm episode with the scripted policy, told in words (what `make demo` runs)",
+        description="Runs one episode of the ReverseAlarm task (the robot in the car cabin pushes the gearshift "
+        "into R; the reverse alarm starts in front of it; it must let go within 1 s, and not for another vehicle's "
+        "beeper behind or beside) with the scripted policy, which lets go when it hears the alarm from the front. "
+        "Prints what happened: when the alarm started, when the robot recognized it and from which direction "
+        "(from the percepts in its observations), what else it heard, when the hand let go, and the outcome "
+        "(success, or the failure and why). Writes OUT/demo.png (left and right mel spectrograms, class "
+        "probabilities and the alarm's estimated azimuth over time, with the events marked), OUT/demo.rrd (a rerun "
+        "recording: acoustic-sim play OUT/demo.rrd), OUT/demo.wav (what the ears heard) and OUT/demo.json. The "
+        "first run trains the chosen profile's models and caches them (about a minute for fast on a CPU, with a "
+        "progress bar); later runs take seconds.",
     )
     d.add_argument("--out", type=Path, default=Path("runs"), help="output folder (default runs/)")
-    d.add_argument("--seed", type=int, default=0, help="random seed")
+    d.add_argument("--seed", type=int, default=0, help="episode seed, >= 0 (default 0): same seed, same episode")
+    d.add_argument("--profile", choices=("fast", "paper"), default="fast",
+                   help="auditory models: fast (default; small networks, trained in about a minute on a CPU) or paper "
+                   "(the paper's networks; several minutes of training the first time)")
     d.set_defaults(func=cmd_demo)
 
     from acoustic_sim import cli_auditory, cli_world
@@ -237,7 +250,7 @@ def cmd_demo(args) -> int:
     from acoustic_sim.demo import run_demo
 
     t0 = time.perf_counter()
-    summary = run_demo(out=args.out, seed=args.seed)
+    summary = run_demo(out=args.out, seed=args.seed, profile=args.profile)
     print(summary)
     print(f"(demo took {time.perf_counter() - t0:.1f} s)")
     return 0

@@ -12,6 +12,13 @@ the episodes and a summary table is printed at the end.
 Hook for recorders: ``step_callback(env, episode, step, obs, reward, terminated, truncated,
 info)`` is called after every reset (``step`` 0, reward 0) and every step; the env exposes
 ``last_percept``, ``last_audio`` and ``coupling`` for what a recording needs.
+
+Recordings: ``rrd=FILE`` (``--rrd FILE`` on the command line) attaches an
+:class:`acoustic_sim.viz.episode.EpisodeRecorder` through that hook. All episodes of the run
+go into that one file, one after another: the ``frame`` timeline counts every step of the
+run, ``sim_time`` is each episode's own time plus an offset that starts it 1 s after the
+previous one ended, and an ``episode`` timeline holds the episode number; the event log
+marks each episode's start (with its seed) and outcome.
 """
 
 from __future__ import annotations
@@ -126,7 +133,7 @@ def summarize(records: list[dict]) -> dict:
 
 
 def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile: str = "paper", progress: bool = True,
-                 step_callback=None) -> dict:
+                 step_callback=None, rrd=None, camera: bool = True) -> dict:
     """Run ``episodes`` episodes and write ``out/episodes.json``.
 
     Parameters
@@ -147,13 +154,25 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
         A progress bar over the episodes and the summary table on stdout.
     step_callback : callable, optional
         ``f(env, episode, step, obs, reward, terminated, truncated, info)`` (see the module).
+    rrd : str or pathlib.Path, optional
+        Record every episode into this ``.rrd`` file (see the module for the layout); it is
+        checked and created before the first episode runs.
+    camera : bool
+        With ``rrd``: log the eye camera's image (every 4th step).
 
     Returns
     -------
     dict
         What ``episodes.json`` holds: ``task``, ``policy``, ``profile``, ``seed``,
         ``summary`` (success_rate, median_reaction_s, false_release_rate, outcomes, speed)
-        and ``records``.
+        and ``records``; with ``rrd``, also ``rrd`` (the file's path).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown task or policy, or a bad number of episodes or seed.
+    RecordingError
+        If ``rrd`` cannot take a recording.
     """
     if policy not in POLICY_NAMES:
         raise ConfigError(f"unknown policy {policy!r}; valid: {', '.join(POLICY_NAMES)}")
@@ -161,30 +180,59 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
         raise ConfigError(f"episodes must be a positive integer, got {episodes!r}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    if task not in TASK_NAMES:
+        raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASK_NAMES)}")
     out = Path(out)
-    env = make_env(task, profile=profile)
-    _tasks_module()
-    from policies import make_policy
+    recorder = None
+    if rrd is not None:
+        from acoustic_sim.viz.episode import EpisodeRecorder
 
-    pol = make_policy(policy, env)
-    from tqdm.auto import tqdm
-
+        recorder = EpisodeRecorder(rrd, camera=camera, first_seed=int(seed), name=f"{task} {policy} seed {int(seed)}")
+    callback = _chain(step_callback, recorder)
     records = []
-    bar = tqdm(range(episodes), desc=f"{task} / {policy}", disable=not progress, dynamic_ncols=True)
     try:
-        for i in bar:
-            records.append(run_episode(env, pol, int(seed) + i, episode=i, step_callback=step_callback))
-            ok = sum(r["success"] for r in records)
-            bar.set_postfix(success=f"{ok}/{len(records)}", last=records[-1]["outcome"])
+        env = make_env(task, profile=profile)
+        _tasks_module()
+        from policies import make_policy
+
+        pol = make_policy(policy, env)
+        from tqdm.auto import tqdm
+
+        bar = tqdm(range(episodes), desc=f"{task} / {policy}", disable=not progress, dynamic_ncols=True)
+        try:
+            for i in bar:
+                records.append(run_episode(env, pol, int(seed) + i, episode=i, step_callback=callback))
+                ok = sum(r["success"] for r in records)
+                bar.set_postfix(success=f"{ok}/{len(records)}", last=records[-1]["outcome"])
+        finally:
+            env.close()
     finally:
-        env.close()
+        if recorder is not None:
+            recorder.close()
     result = {"task": task, "policy": policy, "profile": profile, "seed": int(seed), "summary": summarize(records),
               "records": records}
+    if recorder is not None:
+        result["rrd"] = str(recorder.path)
     out.mkdir(parents=True, exist_ok=True)
     (out / "episodes.json").write_text(json.dumps(result, indent=1) + "\n")
     if progress:
         print(summary_table(result))
     return result
+
+
+def _chain(*callbacks):
+    """One step callback that calls each of ``callbacks`` that is not None, in order."""
+    live = [c for c in callbacks if c is not None]
+    if not live:
+        return None
+    if len(live) == 1:
+        return live[0]
+
+    def call(*args):
+        for c in live:
+            c(*args)
+
+    return call
 
 
 def summary_table(result: dict) -> str:
@@ -219,7 +267,11 @@ def add_parsers(sub) -> None:
         "right; call-response: turn toward a person who calls until the person is in view) with a policy "
         "(scripted: the paper's behaviour from the percepts; oracle: from the ground truth; blind: ignores "
         "directions). Episode i uses seed SEED + i. Writes DIR/episodes.json (one record per episode, "
-        "success_rate, median_reaction_s, false_release_rate) and prints a summary table.",
+        "success_rate, median_reaction_s, false_release_rate) and prints a summary table. With --rrd FILE, "
+        "also a rerun recording of every episode (open it with `acoustic-sim play FILE`): all episodes are one "
+        "recording, one after another; the frame timeline counts every step of the run, sim_time runs on with "
+        "each episode starting 1 s after the previous one ended, an episode timeline numbers them, and the event "
+        "log marks each episode's start (with its seed) and outcome.",
     )
     r.add_argument("task", choices=TASK_NAMES, help="which task")
     r.add_argument("--policy", choices=POLICY_NAMES, default="scripted", help="which policy (default scripted)")
@@ -228,6 +280,12 @@ def add_parsers(sub) -> None:
     r.add_argument("--out", type=Path, required=True, help="output folder for episodes.json")
     r.add_argument("--profile", choices=("paper", "fast"), default="paper",
                    help="auditory models: paper (default) or fast (small, for tests)")
+    r.add_argument("--rrd", type=Path, default=None, metavar="FILE",
+                   help="also write a rerun recording (FILE ends in .rrd) of all the episodes, one after another "
+                   "on the sim_time timeline, numbered on an episode timeline")
+    r.add_argument("--no-camera", action="store_true",
+                   help="with --rrd: leave out the eye camera images, rendered offscreen every 4th step otherwise "
+                   "(fast on a GPU; tens of ms a picture with software OpenGL, which can slow a CPU-only run severalfold)")
     r.set_defaults(func=cmd_run)
 
 
@@ -236,6 +294,11 @@ def cmd_run(args) -> int:
         raise ConfigError(f"--episodes must be at least 1, got {args.episodes}")
     if args.seed < 0:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
-    run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile)
+    if args.no_camera and args.rrd is None:
+        raise ConfigError("--no-camera only applies to a recording: add --rrd FILE")
+    result = run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile,
+                          rrd=args.rrd, camera=not args.no_camera)
     print(f"wrote {args.out / 'episodes.json'}")
+    if "rrd" in result:
+        print(f"wrote {result['rrd']} (view it with: acoustic-sim play {result['rrd']})")
     return 0

@@ -14,6 +14,14 @@ timed. ``log_cpu_ms_per_frame`` is the process CPU time over the same span, so r
 background threads (batching, compression, writing) are counted too. ``rrd_mb_per_min`` is the
 file size per minute of simulated time (1 MB = 1e6 bytes). Setting up (the static scene,
 the blueprint) is ``open_ms``, once per recording.
+
+``episode`` (not with ``--quick``): the real path of ``acoustic-sim run --rrd``, the
+:class:`~acoustic_sim.viz.episode.EpisodeRecorder` on the runner's hook over three
+ReverseAlarm episodes with the scripted policy and the ``fast`` models (trained first if
+they are not cached): ``hook_ms_per_step`` without the eye camera (everything but the
+rendering, the recorder's opening included), ``eye_render_ms`` for one eye image
+(``env.eye_image()``, MuJoCo's offscreen renderer: the camera's cost, paid every
+``camera_every``-th step) and ``rrd_mb_per_min`` with the camera.
 """
 
 from __future__ import annotations
@@ -49,6 +57,53 @@ def _entity_mb(path: Path) -> dict:
             key = "world/<scene bodies>"
         sizes[key] = sizes.get(key, 0.0) + chunk.to_record_batch().nbytes / 1e6
     return {k: round(v, 2) for k, v in sorted(sizes.items(), key=lambda kv: -kv[1])}
+
+
+def episode_cost(n_episodes: int = 3) -> dict:
+    """What recording real task episodes through the runner's hook costs (see the module)."""
+    from acoustic_sim.runner import _tasks_module, make_env, run_episode
+    from acoustic_sim.viz.episode import EpisodeRecorder
+
+    _tasks_module()
+    from policies import make_policy
+
+    env = make_env("reverse-alarm", profile="fast")
+    policy = make_policy("scripted", env)
+    out: dict = {"task": "reverse-alarm", "policy": "scripted", "profile": "fast", "episodes": n_episodes}
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for camera in (False, True):
+                path = Path(tmp) / f"episode_{camera}.rrd"
+                rec = EpisodeRecorder(path, camera=camera)
+                spent, steps = [0.0], 0
+
+                def hook(*args, rec=rec, spent=spent):
+                    t0 = time.perf_counter()
+                    rec(*args)
+                    spent[0] += time.perf_counter() - t0
+
+                for i in range(n_episodes):
+                    steps += run_episode(env, policy, i, episode=i, step_callback=hook)["steps"]
+                t0 = time.perf_counter()
+                rec.close()
+                spent[0] += time.perf_counter() - t0
+                frames = steps + n_episodes
+                if not camera:
+                    out["hook_ms_per_step"] = round(spent[0] / frames * 1e3, 4)
+                    out["steps"] = steps
+                else:
+                    out["hook_ms_per_step_with_camera"] = round(spent[0] / frames * 1e3, 4)
+                    out["camera_every"] = rec.config.camera_every
+                    out["rrd_mb_per_min"] = round(path.stat().st_size / 1e6 / (steps / FRAME_RATE / 60.0), 2)
+            t0 = time.perf_counter()
+            for _ in range(20):
+                env.eye_image()
+            out["eye_render_ms"] = round((time.perf_counter() - t0) / 20 * 1e3, 2)
+            out["eye_image"] = list(env.image_size)
+            out["mujoco_gl"] = os.environ.get("MUJOCO_GL", "")
+    finally:
+        env.close()
+    return out
 
 
 def run(*, quick: bool = False, out_rrd: Path | None = None) -> dict:
@@ -103,6 +158,8 @@ def run(*, quick: bool = False, out_rrd: Path | None = None) -> dict:
     }
     if by_entity is not None:
         result["uncompressed_mb_by_entity"] = by_entity
+    if not quick:
+        result["episode"] = episode_cost()
     return result
 
 

@@ -16,13 +16,28 @@ def run_cli(*args):
 
 def test_every_subcommand_has_help(capsys):
     parser = build_parser()
-    commands = [["render"], ["measure-hrtf"], ["bench"], ["bench", "render"], ["demo"]]
+    commands = [["render"], ["measure-hrtf"], ["bench"], ["bench", "render"], ["bench", "viz"], ["demo"], ["run"], ["play"]]
     for cmd in commands:
         with pytest.raises(SystemExit) as exit_info:
             main([*cmd, "--help"])
         assert exit_info.value.code == 0
         assert "usage: acoustic-sim" in capsys.readouterr().out
     assert parser.prog == "acoustic-sim"
+
+
+def test_run_and_demo_help_explain_recordings_and_profiles(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", "--help"])
+    assert exit_info.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--rrd FILE" in text and "--no-camera" in text
+    assert "episode timeline" in text and "1 s after the previous one ended" in text  # how episodes share a file
+    with pytest.raises(SystemExit) as exit_info:
+        main(["demo", "--help"])
+    assert exit_info.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for words in ("--profile {fast,paper}", "--seed SEED", "--out OUT", "demo.png", "demo.rrd", "fast (default"):
+        assert words in text, words
 
 
 def test_render_writes_a_two_channel_float_wav(tmp_path):

@@ -5,6 +5,10 @@ from __future__ import annotations
 
 import dataclasses
 
+from acoustic_sim.world.snapshot import choose_gl_backend
+
+choose_gl_backend()  # before MuJoCo is imported (when this module is the first to import it)
+
 import mujoco
 import numpy as np
 import pytest
@@ -20,6 +24,7 @@ from acoustic_sim.viz import Recorder, RecorderConfig, RecordingError, SceneGeom
 from acoustic_sim.viz import blueprint as bp
 from acoustic_sim.viz.play import check_recording, how_to_view
 from acoustic_sim.viz.sample import SyntheticEpisode, scene_model
+from acoustic_sim.world.view import WorldView
 
 N_FRAMES = 40
 
@@ -179,11 +184,12 @@ def test_logging_does_not_mutate_inputs(tmp_path, cabin, grid):
         for k in range(8):
             kw = episode.frame(k)
             kw["camera_image"] = np.arange(24 * 32 * 3, dtype=np.uint8).reshape(24, 32, 3)
-            data = kw.pop("data")
+            view = kw.pop("view")
+            data = episode.data
             before = _copy(kw)
             state = {f: getattr(data, f).copy() for f in ("qpos", "qvel", "xpos", "xquat", "xmat", "ctrl", "act")}
             t_before = data.time
-            rec.log_frame((k + 1) / FRAME_RATE, k, data=data, **kw)
+            rec.log_frame((k + 1) / FRAME_RATE, k, view=view, **kw)
             assert _equal(kw, before)
             assert all(np.array_equal(getattr(data, f), v) for f, v in state.items()) and data.time == t_before
     assert np.array_equal(np.random.get_state()[1], global_state)  # no use of numpy's global RNG
@@ -195,6 +201,7 @@ def test_recording_does_not_change_the_simulation(tmp_path, cabin, grid):
     def rollout(recorder):
         rng = np.random.default_rng(7)
         data = mujoco.MjData(cabin)
+        view = WorldView(cabin, data)
         lo, hi = cabin.actuator_ctrlrange.T if cabin.nu else (np.zeros(0), np.zeros(0))
         for k in range(12):
             if cabin.nu:
@@ -202,7 +209,7 @@ def test_recording_does_not_change_the_simulation(tmp_path, cabin, grid):
             for _ in range(8):
                 mujoco.mj_step(cabin, data)
             if recorder is not None:
-                recorder.log_frame(data.time, k, data=data, audio_block=rng.standard_normal((2, 705)) * 0 + 0.1,
+                recorder.log_frame(data.time, k, view=view, audio_block=rng.standard_normal((2, 705)) * 0 + 0.1,
                                    head_pose=(np.zeros(3), np.eye(3)))
             else:
                 rng.standard_normal((2, 705))
@@ -255,7 +262,7 @@ def test_scene_geometry_paths_shapes_and_poses():
     data = mujoco.MjData(model)
     data.qpos[:] = [0.4, -0.7]
     mujoco.mj_kinematics(model, data)
-    t, q = geo.body_poses(data)
+    t, q = geo.body_poses(data.xpos, data.xquat)
     # the tip's entity sits under the lever's: its pose is relative, and composes back to xpos/xquat
     r_lever = data.xmat[1].reshape(3, 3)
     np.testing.assert_allclose(t[1], data.xpos[1], atol=1e-6)
@@ -263,6 +270,16 @@ def test_scene_geometry_paths_shapes_and_poses():
     rel = np.zeros(9)
     mujoco.mju_quat2Mat(rel, np.r_[q[2, 3], q[2, :3]].astype(np.float64))
     np.testing.assert_allclose(r_lever @ rel.reshape(3, 3), data.xmat[2].reshape(3, 3), atol=1e-6)
+
+
+class _PoseView:
+    """The part of ``WorldView`` the recorder reads, for a model without the robot (no ears)."""
+
+    def __init__(self, data: mujoco.MjData) -> None:
+        self._data = data
+
+    def body_poses(self):
+        return self._data.xpos.copy(), self._data.xquat.copy()
 
 
 def test_unchanged_bodies_are_not_logged_again(tmp_path):
@@ -275,7 +292,7 @@ def test_unchanged_bodies_are_not_logged_again(tmp_path):
             if k >= 5:
                 data.qpos[0] = 0.1 * k
                 mujoco.mj_kinematics(model, data)
-            rec.log_frame(k / FRAME_RATE, k, data=data)
+            rec.log_frame(k / FRAME_RATE, k, view=_PoseView(data))
     chunks, _, _ = _read(path)
     assert _frames(chunks, "/world/car/lever") == {0, 5, 6, 7, 8, 9}
     assert _frames(chunks, "/world/car/lever/tip") == {0}  # relative to the lever, it never moved
@@ -350,3 +367,207 @@ def test_play_without_display_says_how_to_view(recording, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "No display" in out and f"rerun {recording}" in out and "--web-viewer" in out
     assert out == how_to_view(recording)
+
+
+# -- task episodes through the runner's hook (fast auditory models) --------------------------------
+
+
+def _rows(chunks, entity: str, column: str) -> list[tuple[int, object]]:
+    """(frame, value) of every row of ``entity`` that has ``column``, in frame order."""
+    out = []
+    for c in chunks:
+        if c.entity_path == entity and not c.is_static:
+            rb = c.to_record_batch()
+            if column in rb.schema.names:
+                out += zip(rb.column("frame").to_pylist(), rb.column(column).to_pylist())
+    return sorted(out, key=lambda r: r[0])
+
+
+def _seconds(chunks, entity: str) -> list[float]:
+    import pyarrow as pa
+
+    out = []
+    for c in chunks:
+        if c.entity_path == entity and not c.is_static:
+            out += [ns / 1e9 for ns in c.to_record_batch().column("sim_time").cast(pa.int64()).to_pylist()]
+    return sorted(out)
+
+
+_SAME_EPISODE = r"""
+import json, sys
+import numpy as np
+from acoustic_sim.runner import _tasks_module, make_env, run_episode
+from acoustic_sim.viz.episode import EpisodeRecorder
+from acoustic_sim.viz.recorder import RecorderConfig
+_tasks_module()
+from policies import make_policy
+
+def collect(trace):
+    def hook(env, episode, step, obs, reward, terminated, truncated, info):
+        audio = None if step == 0 else env.unwrapped.last_audio.copy()
+        trace.append((step, {k: v.copy() for k, v in obs.items()}, reward, terminated, truncated,
+                      [dict(e) for e in info["events"]], audio))
+    return hook
+
+env = make_env("reverse-alarm", profile="fast", max_episode_s=1.0)
+plain, recorded = [], []
+record_plain = run_episode(env, make_policy("scripted", env), 1, step_callback=collect(plain))
+rec = EpisodeRecorder(sys.argv[1], config=RecorderConfig(camera_every=1, flush_every=7))
+hook = collect(recorded)
+def both(*args):
+    rec(*args)
+    hook(*args)
+with rec:
+    record_recorded = run_episode(env, make_policy("scripted", env), 1, step_callback=both)
+mismatch = None
+for a, b in zip(plain, recorded):
+    if a[0] != b[0] or a[2:6] != b[2:6]:
+        mismatch = [a[0], "step, reward, end or events"]
+    elif a[1].keys() != b[1].keys():
+        mismatch = [a[0], "observation keys"]
+    else:
+        bad = [k for k in a[1] if a[1][k].dtype != b[1][k].dtype or not np.array_equal(a[1][k], b[1][k])]
+        if bad:
+            mismatch = [a[0], bad[0]]
+        elif not ((a[6] is None and b[6] is None) or np.array_equal(a[6], b[6])):
+            mismatch = [a[0], "audio"]
+    if mismatch:
+        break
+keys = ("outcome", "events", "steps", "release_s", "gear")
+print(json.dumps({"steps": [len(plain), len(recorded)], "mismatch": mismatch, "camera": rec.camera,
+                  "records": [record_plain.get(k) == record_recorded.get(k) for k in keys],
+                  "classes_heard": int(sum(bool(np.any(t[1]["class_conf"] > 0)) for t in plain))}))
+"""
+
+
+def _python(code: str, *args: str) -> dict:
+    """Run ``code`` in a fresh interpreter (which picks its own offscreen OpenGL backend before
+    MuJoCo is imported, whatever this process imported) and return the JSON it prints last."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = str(Path(__file__).resolve().parents[1])
+    out = subprocess.run([sys.executable, "-c", code, *args], cwd=root, capture_output=True, text=True, timeout=900,
+                         check=False)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_recording_through_the_runner_hook_does_not_change_the_episode(tmp_path):
+    """Same seed: bit-identical observations, rewards, events and ear blocks over 62 steps of
+    ReverseAlarm (fast models; seed 1 has another vehicle's beeper from 0.64 s) with and
+    without a recording, eye camera rendered every step, attached through the runner's hook."""
+    r = _python(_SAME_EPISODE, str(tmp_path / "same.rrd"))
+    assert r["steps"] == [63, 63]  # the reset and 62 steps, both times
+    assert r["mismatch"] is None, r["mismatch"]
+    assert all(r["records"])
+    assert r["classes_heard"] > 5  # the percepts were not all empty: there was something to disturb
+    assert r["camera"]  # the eye camera did render, every step
+    chunks, _, _ = _read(tmp_path / "same.rrd")
+    assert len(_rows(chunks, "/" + bp.CAMERA, "EncodedImage:blob")) == 63
+
+
+def test_run_rrd_records_an_episode_that_reads_back(tmp_path):
+    """``acoustic-sim run ... --rrd FILE``: one episode, read back with rerun's own reader."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    rrd = tmp_path / "ep.rrd"
+    out = subprocess.run([sys.executable, "-m", "acoustic_sim.cli", "run", "reverse-alarm", "--policy", "scripted",
+                          "--episodes", "1", "--seed", "0", "--profile", "fast", "--out", str(tmp_path), "--rrd", str(rrd)],
+                         cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=900, check=False)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert f"acoustic-sim play {rrd}" in out.stdout and "warning" not in out.stderr
+    record = json.loads((tmp_path / "episodes.json").read_text())["records"][0]
+    assert check_recording(rrd) == rrd
+    chunks, recordings, blueprints = _read(rrd)
+    assert len(recordings) == 1 and len(blueprints) == 1
+    paths = {c.entity_path for c in chunks}
+    for entity in (bp.ESTIMATED_DIRECTIONS, bp.TRUE_DIRECTIONS, bp.EXISTENCE, bp.SOURCES, bp.HEARING, bp.EYE_FRUSTUM,
+                   bp.CAMERA, bp.MEL_LEFT, bp.MEL_RIGHT, bp.PROBABILITIES, bp.WAVEFORM_LEFT, bp.WAVEFORM_RIGHT, bp.EVENTS):
+        assert "/" + entity in paths, entity
+    assert {"/world/car/gearshift_lever", "/world/robot/head"} <= paths
+    # one frame per step plus the reset, on all three timelines
+    n = record["steps"] + 1
+    assert _frames(chunks) == set(range(n))
+    assert [f for f, _ in _rows(chunks, "/" + bp.PROBABILITIES, "Scalars:scalars")] == list(range(n))
+    sim = _seconds(chunks, "/" + bp.PROBABILITIES)
+    assert sim[0] == 0.0 and sim[-1] == pytest.approx(record["steps"] / FRAME_RATE, abs=1e-3)
+    episodes = {e for c in chunks if not c.is_static for e in c.to_record_batch().column("episode").to_pylist()}
+    assert episodes == {0}
+    camera = [f for f, _ in _rows(chunks, "/" + bp.CAMERA, "EncodedImage:blob")]
+    assert camera == list(range(0, n, 4))  # every 4th step
+    # the estimated directions: unit arrows (0.5 m long) of the detected classes, the alarm among them
+    est = [(f, v) for f, v in _rows(chunks, "/" + bp.ESTIMATED_DIRECTIONS, "Arrows3D:labels") if v]
+    assert est and any(str(label).startswith("reverse_alarm") for _, row in est for label in row)
+    vectors = [np.asarray(v) for _, v in _rows(chunks, "/" + bp.ESTIMATED_DIRECTIONS, "Arrows3D:vectors") if v]
+    assert vectors and all(np.allclose(np.linalg.norm(v, axis=1), 0.5, atol=1e-4) for v in vectors)
+    # the car's alarm is drawn where it is: a true arrow labelled with its source
+    true = [row for _, row in _rows(chunks, "/" + bp.TRUE_DIRECTIONS, "Arrows3D:labels") if row]
+    assert any("alarm" in row for row in true) == (record["target_onset_s"] is not None)
+    text = [t for _, row in _rows(chunks, "/" + bp.EVENTS, "TextLog:text") for t in row]
+    assert text[0] == "episode 0, seed 0: reverse-alarm starts"
+    assert text[-1].startswith("episode 0 ends: ")
+    if record["release_s"] is not None:
+        assert any(t.startswith("the hand lets go") for t in text)
+
+
+def test_several_episodes_follow_each_other_in_one_recording(tmp_path):
+    from acoustic_sim.runner import run_episodes
+
+    rrd = tmp_path / "two.rrd"
+    result = run_episodes("reverse-alarm", "blind", 2, 5, tmp_path, profile="fast", progress=False, rrd=rrd, camera=False)
+    steps = [r["steps"] for r in result["records"]]
+    chunks, recordings, _ = _read(rrd)
+    assert len(recordings) == 1
+    assert _frames(chunks) == set(range(steps[0] + steps[1] + 2))
+    by_episode: dict[int, list[int]] = {}
+    for c in chunks:
+        if c.entity_path == "/" + bp.PROBABILITIES and not c.is_static:
+            rb = c.to_record_batch()
+            for f, e in zip(rb.column("frame").to_pylist(), rb.column("episode").to_pylist()):
+                by_episode.setdefault(e, []).append(f)
+    assert sorted(by_episode[0]) == list(range(steps[0] + 1))
+    assert sorted(by_episode[1]) == list(range(steps[0] + 1, steps[0] + steps[1] + 2))
+    sim = _seconds(chunks, "/" + bp.PROBABILITIES)
+    end0, start1 = sim[steps[0]], sim[steps[0] + 1]
+    assert end0 == pytest.approx(steps[0] / FRAME_RATE, abs=1e-3)
+    assert start1 == pytest.approx(end0 + 1.0)  # the 1 s gap
+    assert not _rows(chunks, "/" + bp.CAMERA, "EncodedImage:blob")  # camera=False
+    text = [t for _, row in _rows(chunks, "/" + bp.EVENTS, "TextLog:text") for t in row]
+    assert "episode 1, seed 6: reverse-alarm starts" in text
+
+
+def test_episode_recording_errors(tmp_path, cabin):
+    from acoustic_sim.cli import main
+    from acoustic_sim.viz.episode import EpisodeRecorder
+
+    with pytest.raises(RecordingError, match=r"\.rrd"):
+        EpisodeRecorder(tmp_path / "episode.txt")
+    with pytest.raises(ConfigError, match="gap_s"):
+        EpisodeRecorder(tmp_path / "x.rrd", gap_s=-1.0)
+    unused = EpisodeRecorder(tmp_path / "unused.rrd")
+    assert (tmp_path / "unused.rrd").is_file()
+    unused.close()
+    assert not (tmp_path / "unused.rrd").exists()  # nothing recorded, nothing left behind
+    # the command line checks the file before it loads any model or runs anything
+    assert main(["run", "reverse-alarm", "--episodes", "1", "--out", str(tmp_path / "o"), "--rrd",
+                 str(tmp_path / "episode.txt")]) == 2
+    assert main(["run", "reverse-alarm", "--episodes", "1", "--out", str(tmp_path / "o"), "--no-camera"]) == 2
+    assert not (tmp_path / "o" / "episodes.json").exists()
+    with pytest.raises(ConfigError, match="not a camera"):
+        Recorder(rr.RecordingStream("t"), model=cabin, eye_camera="robot/nose")
+    with pytest.raises(ConfigError, match="model"):
+        Recorder(rr.RecordingStream("t"), eye_camera="robot/eye_right")
+    rec = Recorder.open(tmp_path / "e.rrd", cabin)
+    with pytest.raises(RecordingError, match="episode"):
+        rec.set_episode(-1)
+    with pytest.raises(RecordingError, match="body_poses"):
+        rec.log_frame(0.0, 0, view=_PoseView(mujoco.MjData(_toy_model())))
+    rec.close()
+    with pytest.raises(RecordingError, match="closed"):
+        rec.set_episode(1)

@@ -15,6 +15,7 @@ TRUE_DIRECTIONS = "world/hearing/true"
 ESTIMATED_DIRECTIONS = "world/hearing/estimated"
 EXISTENCE = "world/hearing/existence"
 SOURCES = "world/sources"
+EYE_FRUSTUM = "world/eye_camera"  # the eye camera's frustum in the scene, posed every frame
 CAMERA = "camera/eye"
 MEL_LEFT = "audio/mel/left"
 MEL_RIGHT = "audio/mel/right"
@@ -26,6 +27,7 @@ EVENTS = "events"
 
 TIMELINE = "sim_time"
 FRAME_TIMELINE = "frame"
+EPISODE_TIMELINE = "episode"  # only in recordings of several episodes (Recorder.set_episode)
 
 
 def default_blueprint(*, history_s: float = 10.0, look_target=None, eye_position=None,

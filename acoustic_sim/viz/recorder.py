@@ -1,11 +1,14 @@
 """Rerun recordings of an episode: the scene, what the ears heard, what the robot perceived.
 
 One :class:`Recorder` writes one ``.rrd`` file. It logs the MuJoCo geoms once (static), then,
-per ear frame, what :meth:`Recorder.log_frame` is given: body poses, sound sources, the true
-and estimated directions as arrows from the head, the existence map on a sphere around the
-head, scrolling left/right mel spectrograms, class probabilities, the ears' waveform
-envelope, events, and the eye camera image. Time runs on two timelines: ``sim_time``
-(seconds) and ``frame`` (the ear-frame sequence).
+per ear frame, what :meth:`Recorder.log_frame` is given: body poses (read through the world's
+``WorldView.body_poses()``), the eye camera's frustum (``WorldView.camera_pose``), sound
+sources, the true and estimated directions as arrows from the head, the existence map on a
+sphere around the head, scrolling left/right mel spectrograms, class probabilities, the ears'
+waveform envelope, events, and the eye camera image. Time runs on two timelines: ``sim_time``
+(seconds) and ``frame`` (the ear-frame sequence); after :meth:`Recorder.set_episode`, a third,
+``episode``, numbers the episodes of a recording that holds several
+(:class:`acoustic_sim.viz.episode.EpisodeRecorder` lays them out one after another).
 
 Cost. ``rr.log`` costs 70-250 us a call, so per-frame data is not logged row by row: it is
 buffered in numpy and sent with ``send_columns`` every ``flush_every`` frames (one call per
@@ -15,8 +18,9 @@ the spectrograms are re-sent as a small JPEG every ``spectrogram_every`` frames.
 that a live viewer sees data up to ``flush_every`` frames late; a file is complete on
 :meth:`Recorder.close`. ``benchmarks/bench_viz.py`` measures ms per frame and MB per minute.
 
-Logging never changes the simulation: inputs are only read (``MjData.xpos``/``xquat`` are
-copied), and no random number generator is used (rerun's recording id is its own UUID).
+Logging never changes the simulation: inputs are only read (the view hands out copies; the
+recorder never sees ``MjData``), and no random number generator is used (rerun's recording id
+is its own UUID).
 """
 
 from __future__ import annotations
@@ -82,6 +86,8 @@ class RecorderConfig:
         Length of the direction arrows, metres.
     geom_groups : tuple of int
         MuJoCo geom groups drawn (menagerie puts collision geoms in group 3).
+    eye_aspect : float
+        Width / height of the eye camera's frustum drawn in the 3D view (the env's images are 4:3).
     pose_tolerance : float
         A body pose, head pose or arrow that moved less than this (metres, or quaternion /
         unit-vector components) since it was last logged is not logged again.
@@ -106,6 +112,7 @@ class RecorderConfig:
     existence_levels: int = 16
     arrow_length_m: float = 0.5
     geom_groups: tuple[int, ...] = (0, 1, 2)
+    eye_aspect: float = 4.0 / 3.0
     pose_tolerance: float = 1e-5
     history_s: float = 10.0
     play_state: str | None = "following"
@@ -124,7 +131,7 @@ class RecorderConfig:
         lo, hi = self.mel_range
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise ConfigError(f"RecorderConfig.mel_range must be finite (low, high) with low < high, got {self.mel_range!r}")
-        for name in ("existence_radius_m", "arrow_length_m", "history_s"):
+        for name in ("existence_radius_m", "arrow_length_m", "history_s", "eye_aspect"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"RecorderConfig.{name} must be a positive number, got {v!r}")
@@ -132,6 +139,28 @@ class RecorderConfig:
             raise ConfigError(f"RecorderConfig.play_state must be 'following', 'paused', 'playing' or None, got {self.play_state!r}")
         if not (math.isfinite(self.pose_tolerance) and self.pose_tolerance >= 0):
             raise ConfigError(f"RecorderConfig.pose_tolerance must be >= 0, got {self.pose_tolerance!r}")
+
+
+def prepare_path(path) -> Path:
+    """Check that ``path`` can take a recording and create it (empty; parent folders too).
+
+    Raises
+    ------
+    RecordingError
+        If ``path`` does not end in ``.rrd``, is a folder, or cannot be written.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".rrd":
+        raise RecordingError(f"recording path must end in .rrd, got {str(p)!r}")
+    if p.is_dir():
+        raise RecordingError(f"recording path {str(p)!r} is a folder, expected an .rrd file path")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with open(p, "wb"):
+            pass
+    except OSError as err:
+        raise RecordingError(f"cannot write recording {str(p)!r}: {err.strerror or err}") from err
+    return p
 
 
 class _Rows:
@@ -162,7 +191,9 @@ class _Rows:
         for k, v in cols.items():
             self.cols.setdefault(k, []).append(v)
 
-    def send(self, rec: rr.RecordingStream, entity: str) -> None:
+    def send(self, rec: rr.RecordingStream, entity: str, episode: int | None = None) -> None:
+        """Send the rows (one ``send_columns`` call); ``episode``: the value of the ``episode``
+        timeline for all of them (the recorder flushes before the episode changes)."""
         if not self.frames:
             return
         cols = {}
@@ -172,13 +203,18 @@ class _Rows:
             else:
                 cols[k] = [x for part in v for x in part]
         columns = self.archetype.columns(**cols).partition(self.lengths)
-        rec.send_columns(
-            entity,
-            indexes=[rr.TimeColumn(bp.FRAME_TIMELINE, sequence=np.asarray(self.frames, np.int64)),
-                     rr.TimeColumn(bp.TIMELINE, duration=np.asarray(self.times, np.float64))],
-            columns=columns,
-        )
+        rec.send_columns(entity, indexes=_indexes(self.frames, self.times, episode), columns=columns)
         self.frames, self.times, self.lengths, self.cols = [], [], [], {}
+
+
+def _indexes(frames, times, episode: int | None) -> list[rr.TimeColumn]:
+    """The time columns of a batch of rows: ``frame``, ``sim_time`` and, if set, ``episode``."""
+    frames = np.asarray(frames, np.int64)
+    cols = [rr.TimeColumn(bp.FRAME_TIMELINE, sequence=frames),
+            rr.TimeColumn(bp.TIMELINE, duration=np.asarray(times, np.float64))]
+    if episode is not None:
+        cols.append(rr.TimeColumn(bp.EPISODE_TIMELINE, sequence=np.full(frames.size, episode, np.int64)))
+    return cols
 
 
 def _jpeg(image: np.ndarray, quality: int) -> bytes:
@@ -220,17 +256,39 @@ class Recorder:
     classes : tuple of str
         Sound classes in the order of ``Percept.probabilities``.
     config : RecorderConfig
+    path : pathlib.Path or None
+        The file the stream writes to (for messages).
+    eye_camera : str or None
+        Full name of a camera of ``model`` (``robot/eye_right``): its frustum is drawn in the
+        3D view at the pose ``view.camera_pose(eye_camera)`` of every frame. ``None``: none.
+
+    Raises
+    ------
+    ConfigError
+        If ``classes`` is empty, ``grid_vectors`` is not (D, 3), or ``eye_camera`` is given
+        without a model or is not a camera of it.
     """
 
     def __init__(self, stream: rr.RecordingStream, *, model: mujoco.MjModel | None = None,
                  grid_vectors=None, classes: Sequence[str] = SOUND_CLASSES,
-                 config: RecorderConfig | None = None, path: Path | None = None) -> None:
+                 config: RecorderConfig | None = None, path: Path | None = None,
+                 eye_camera: str | None = None) -> None:
         self.config = config if config is not None else RecorderConfig()
         self.rec = stream
         self.path = path
         self.classes = tuple(classes)
         if not self.classes or not all(isinstance(c, str) and c for c in self.classes):
             raise ConfigError(f"classes must be a non-empty sequence of class names, got {classes!r}")
+        self.eye_camera = eye_camera
+        if eye_camera is not None:
+            if model is None:
+                raise ConfigError(f"eye_camera {eye_camera!r} needs the model it belongs to")
+            cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, eye_camera)
+            if cid < 0:
+                raise ConfigError(f"eye_camera {eye_camera!r} is not a camera of the model")
+            self._eye_fovy_rad = math.radians(float(model.cam_fovy[cid]))
+        self.episode: int | None = None
+        """The current value of the ``episode`` timeline (``None`` until :meth:`set_episode`)."""
         self.frames_logged = 0
         self._closed = False
         self._pending = 0
@@ -242,6 +300,11 @@ class Recorder:
         self.geometry = None
         if model is not None:
             self._log_scene(model)
+        if eye_camera is not None:
+            # MuJoCo's cameras look along -z with +y up: rerun's RUB.
+            self.rec.log(bp.EYE_FRUSTUM, rr.Pinhole(fov_y=self._eye_fovy_rad, aspect_ratio=self.config.eye_aspect,
+                                                    camera_xyz=rr.ViewCoordinates.RUB, image_plane_distance=0.12),
+                         static=True)
         self.grid = None
         if grid_vectors is not None:
             self._log_grid(grid_vectors)
@@ -255,6 +318,7 @@ class Recorder:
 
         # change detection state
         self._last_head: np.ndarray | None = None
+        self._last_eye: np.ndarray | None = None
         self._last_sources: tuple | None = None
         self._last_true: tuple | None = None
         self._last_est: tuple | None = None
@@ -269,8 +333,18 @@ class Recorder:
 
     @classmethod
     def open(cls, path, model: mujoco.MjModel | None = None, grid_vectors=None,
-             classes: Sequence[str] = SOUND_CLASSES, *, config: RecorderConfig | None = None) -> Recorder:
+             classes: Sequence[str] = SOUND_CLASSES, *, config: RecorderConfig | None = None,
+             eye_camera: str | None = None, name: str | None = None) -> Recorder:
         """Start a recording written to ``path`` (an ``.rrd`` file; parent folders are created).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file; an existing one is overwritten.
+        model, grid_vectors, classes, config, eye_camera
+            As for :class:`Recorder`.
+        name : str or None
+            The recording's name in the viewer; default the file's stem.
 
         Raises
         ------
@@ -278,23 +352,18 @@ class Recorder:
             If ``path`` does not end in ``.rrd``, is a folder, or cannot be written.
         """
         cfg = config if config is not None else RecorderConfig()
-        p = Path(path)
-        if p.suffix.lower() != ".rrd":
-            raise RecordingError(f"recording path must end in .rrd, got {str(p)!r}")
-        if p.is_dir():
-            raise RecordingError(f"recording path {str(p)!r} is a folder, expected an .rrd file path")
-        try:
-            p.parent.mkdir(parents=True, exist_ok=True)
-            with open(p, "wb"):
-                pass
-        except OSError as err:
-            raise RecordingError(f"cannot write recording {str(p)!r}: {err.strerror or err}") from err
+        p = prepare_path(path)
         target, eye = default_view(model) if model is not None else (None, None)
         stream = rr.RecordingStream(cfg.application_id, recording_id=cfg.recording_id)
         stream.save(p, default_blueprint=bp.default_blueprint(
             history_s=cfg.history_s, look_target=target, eye_position=eye, play_state=cfg.play_state))
-        stream.send_recording_name(p.stem)
-        return cls(stream, model=model, grid_vectors=grid_vectors, classes=classes, config=cfg, path=p)
+        stream.send_recording_name(name or p.stem)
+        try:
+            return cls(stream, model=model, grid_vectors=grid_vectors, classes=classes, config=cfg, path=p,
+                       eye_camera=eye_camera)
+        except BaseException:
+            stream.disconnect()
+            raise
 
     def _log_scene(self, model: mujoco.MjModel) -> None:
         self.geometry = geo = SceneGeometry(model, root=bp.WORLD, geom_groups=self.config.geom_groups)
@@ -325,7 +394,32 @@ class Recorder:
             rows = self._rows[entity] = _Rows(archetype)
         return rows
 
-    def log_frame(self, time_s: float, frame: int, *, data: mujoco.MjData | None = None,
+    def set_episode(self, episode: int) -> None:
+        """Rows logged from now on carry ``episode`` on the ``episode`` timeline.
+
+        What is buffered is sent first (a batch holds one episode), and the scrolling
+        spectrograms start empty, so that an episode's picture holds none of the previous one.
+
+        Parameters
+        ----------
+        episode : int
+            Episode number, >= 0.
+
+        Raises
+        ------
+        RecordingError
+            If the recorder is closed or ``episode`` is not an integer >= 0.
+        """
+        if self._closed:
+            raise RecordingError("set_episode() on a closed Recorder")
+        if isinstance(episode, bool) or not isinstance(episode, (int, np.integer)) or episode < 0:
+            raise RecordingError(f"episode must be an integer >= 0, got {episode!r}")
+        self.flush()
+        self.episode = int(episode)
+        self._spec = None
+        self._spec_pushed = 0
+
+    def log_frame(self, time_s: float, frame: int, *, view=None,
                   sources: Iterable[tuple[str, str, object]] = (),
                   head_pose: tuple[object, object] | None = None,
                   true_directions: Mapping[str, object] | None = None,
@@ -339,8 +433,11 @@ class Recorder:
             Simulation time in seconds (the ``sim_time`` timeline): the end of the ear frame.
         frame : int
             Ear frame number (the ``frame`` timeline), >= 0.
-        data : mujoco.MjData, optional
-            State of the model given to :meth:`open`; body poses are read from ``xpos``/``xquat``.
+        view : acoustic_sim.world.view.WorldView, optional
+            The world of the model given to :meth:`open`: body poses are read with
+            ``view.body_poses()`` (copies of ``xpos``/``xquat``) and, if the recorder has an
+            ``eye_camera``, its pose with ``view.camera_pose(eye_camera)``. Any object with
+            those methods will do.
         sources : iterable of (name, class, world position)
             The active sound sources; each is drawn as a point labelled ``name`` coloured by class.
         head_pose : (position (3,), rotation (3, 3)), optional
@@ -368,8 +465,11 @@ class Recorder:
             raise RecordingError(f"frame must be an integer >= 0, got {frame!r}")
         k = int(frame)
 
-        if data is not None and self.geometry is not None:
-            self._log_bodies(k, t, data)
+        if view is not None:
+            if self.geometry is not None:
+                self._log_bodies(k, t, view)
+            if self.eye_camera is not None:
+                self._log_eye(k, t, view)
         rot = None
         if head_pose is not None:
             pos = np.asarray(head_pose[0], dtype=np.float64).reshape(3)
@@ -398,8 +498,12 @@ class Recorder:
         if self._pending >= self.config.flush_every:
             self.flush()
 
-    def _log_bodies(self, k: int, t: float, data: mujoco.MjData) -> None:
-        trans, quat = self.geometry.body_poses(data)
+    def _log_bodies(self, k: int, t: float, view) -> None:
+        xpos, xquat = view.body_poses()
+        try:
+            trans, quat = self.geometry.body_poses(xpos, xquat)
+        except ValueError as err:
+            raise RecordingError(f"view.body_poses() does not fit the recorder's model: {err}") from err
         tol = self.config.pose_tolerance
         changed = ~((np.abs(trans - self._body_t) <= tol).all(axis=1) & (np.abs(quat - self._body_q) <= tol).all(axis=1))
         changed[0] = False  # the world body is the identity
@@ -408,6 +512,16 @@ class Recorder:
             self._body_t[idx] = trans[idx]
             self._body_q[idx] = quat[idx]
             self._body_rows.append((k, t, idx, trans[idx], quat[idx]))
+
+    def _log_eye(self, k: int, t: float, view) -> None:
+        pos, rot = view.camera_pose(self.eye_camera)
+        q = np.empty(4)
+        mujoco.mju_mat2Quat(q, np.ascontiguousarray(rot, dtype=np.float64).ravel())
+        pose = np.concatenate([np.asarray(pos, np.float64).reshape(3), q[[1, 2, 3, 0]]]).astype(np.float32)
+        if self._last_eye is not None and np.all(np.abs(pose - self._last_eye) <= self.config.pose_tolerance):
+            return
+        self._last_eye = pose
+        self._rows_for(bp.EYE_FRUSTUM, rr.Transform3D).add(k, t, 1, translation=pose[None, :3], quaternion=pose[None, 3:])
 
     def _log_head(self, k: int, t: float, pos: np.ndarray, rot: np.ndarray) -> None:
         q = np.empty(4)
@@ -560,12 +674,11 @@ class Recorder:
             for s, e in zip(starts, ends):
                 self.rec.send_columns(
                     self.geometry.body_paths[body[s]],
-                    indexes=[rr.TimeColumn(bp.FRAME_TIMELINE, sequence=frames[s:e]),
-                             rr.TimeColumn(bp.TIMELINE, duration=times[s:e])],
+                    indexes=_indexes(frames[s:e], times[s:e], self.episode),
                     columns=rr.Transform3D.columns(translation=trans[s:e], quaternion=quat[s:e]),
                 )
         for entity, rows in self._rows.items():
-            rows.send(self.rec, entity)
+            rows.send(self.rec, entity, self.episode)
         self._pending = 0
 
     def close(self) -> None:

@@ -6,8 +6,9 @@ where that module is not available, the cabin asset with the robot attached the 
 (``car/`` and ``robot/`` prefixes). :class:`SyntheticEpisode` produces, per ear frame, what an
 episode hands to :meth:`Recorder.log_frame`, with the real shapes: percepts over the real
 direction grid (a peaked existence map that follows a source), (2, 128) mel frames, audio
-blocks of 705/706 samples on the sample clock, a turning head, joint motion, events, and
-eye-camera images rendered by MuJoCo when an OpenGL backend is available.
+blocks of 705/706 samples on the sample clock, a turning head, joint motion (read by the
+recorder through a :class:`~acoustic_sim.world.view.WorldView`), events, and eye-camera
+images rendered by MuJoCo when an OpenGL backend is available.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, block_length, rotation_zyx, vec_to_sph
+from acoustic_sim.world.view import WorldView
 
 ASSETS = Path(__file__).resolve().parents[2] / "assets"
 _GL_ERRORS = (mujoco.FatalError, RuntimeError, OSError, ImportError, AttributeError, ctypes.ArgumentError)
@@ -105,6 +107,7 @@ class SyntheticEpisode:
     def __init__(self, model: mujoco.MjModel, grid_vectors, *, seed: int = 0, camera: bool = True, n_images: int = 16) -> None:
         self.model = model
         self.data = mujoco.MjData(model)
+        self.view = WorldView(model, self.data)
         self.grid = np.asarray(grid_vectors, dtype=np.float32)
         self.rng = np.random.default_rng(seed)
         self.images = None
@@ -171,7 +174,7 @@ class SyntheticEpisode:
         if k % 40 == 7:
             events.append("ratchet tooth clicked")
         return {
-            "data": self.data, "sources": self.sources, "head_pose": (self.head_pos, rot), "percept": percept,
+            "view": self.view, "sources": self.sources, "head_pose": (self.head_pos, rot), "percept": percept,
             "audio_block": block, "events": events,
             "camera_image": None if self.images is None else self.images[k % len(self.images)],
         }

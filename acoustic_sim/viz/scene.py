@@ -11,8 +11,9 @@ body (usually ``world``, so the pose is MuJoCo's ``xpos``/``xquat``), because re
 transforms along entity paths, not along MuJoCo's kinematic tree. Geoms carry their fixed
 pose in the body (``geom_pos``/``geom_quat``) and their shape, both static.
 
-Only ``MjModel`` fields are read here, plus ``MjData.xpos``/``xquat`` (copied) in
-:meth:`SceneGeometry.body_poses`; nothing is written.
+Only ``MjModel`` fields are read here; the per-frame poses come in as arrays (what
+``WorldView.body_poses()`` returns: copies of ``xpos``/``xquat``), so this module never
+touches ``MjData``, and nothing is written.
 """
 
 from __future__ import annotations
@@ -216,8 +217,17 @@ class SceneGeometry:
 
     # -- poses ---------------------------------------------------------------------------------
 
-    def body_poses(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    def body_poses(self, xpos, xquat) -> tuple[np.ndarray, np.ndarray]:
         """Pose of every body entity relative to its anchor entity.
+
+        Parameters
+        ----------
+        xpos : array_like
+            (nbody, 3) world positions of the bodies, metres, indexed by body id
+            (``WorldView.body_poses()[0]``).
+        xquat : array_like
+            (nbody, 4) world orientations, MuJoCo's (w, x, y, z) order
+            (``WorldView.body_poses()[1]``).
 
         Returns
         -------
@@ -225,9 +235,18 @@ class SceneGeometry:
             float32 (nbody, 3), metres.
         quaternion : numpy.ndarray
             float32 (nbody, 4), rerun's (x, y, z, w) order.
+
+        Raises
+        ------
+        ValueError
+            If the arrays do not have one row per body of the model.
         """
-        pos = np.array(data.xpos, dtype=np.float64)
-        quat = np.array(data.xquat, dtype=np.float64)
+        n = len(self.body_paths)
+        pos = np.array(xpos, dtype=np.float64)
+        quat = np.array(xquat, dtype=np.float64)
+        if pos.shape != (n, 3) or quat.shape != (n, 4):
+            raise ValueError(f"body poses must be ({n}, 3) positions and ({n}, 4) quaternions for this model, "
+                             f"got {pos.shape} and {quat.shape}")
         rel = self.anchor >= 0
         if rel.any():
             a = self.anchor[rel]
