@@ -15,8 +15,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
+# One ReverseAlarm episode, told in words; runs/demo.{png,rrd,wav,json}. Fast models unless
+# DEMO_ARGS says otherwise, e.g. make demo DEMO_ARGS="--profile paper --seed 3".
+DEMO_ARGS ?=
 demo: $(STAMP)
-	$(BIN)/acoustic-sim demo --out runs
+	$(BIN)/acoustic-sim demo --out runs $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(BIN)/pytest -q

@@ -1,112 +1,428 @@
-"""What ``make demo`` runs until the task environments exist.
+"""What ``make demo`` runs: one ReverseAlarm episode with the scripted policy, told in words.
 
-A reverse alarm sounds from the dashboard in front of the head, in the car cabin, while
-the head turns from 60 deg right to 60 deg left and back (a new pose every 16 ms, on the
-project clock). The ear signals go through the microphone model to ``OUT/demo.wav``;
-``OUT/demo.png`` shows the left and right spectrograms and the interaural level
-difference over time, which swings with the head as it should; a summary is printed.
+The robot sits in the car cabin with its left hand on the gearshift
+(``acoustic_sim/ReverseAlarm-v0``, :mod:`tasks.reverse_alarm`). The scripted policy
+(:mod:`policies.scripted`) pushes the lever toward R; entering R starts the reverse alarm in
+front of the head; the policy lets go once the alarm is heard *from the front*, while
+distractors (another vehicle's beeper behind or beside, a horn, the radio) try to fool it.
+The episode runs through the episode runner (:func:`acoustic_sim.runner.run_episode`), whose
+step hook feeds both the rerun recording and this module's trace.
+
+:func:`run_demo` writes, in ``OUT``:
+
+``demo.png``
+    Left and right mel spectrograms, the reverse alarm's probability, and the estimated
+    azimuth of the reverse alarm over time with the true azimuths of the alarm and of any
+    beeping distractor, events marked as vertical lines (as the paper's task figures).
+``demo.rrd``
+    The rerun recording of the episode (``acoustic-sim play OUT/demo.rrd``).
+``demo.wav``
+    What the ears heard (after the microphone model): 2-channel float32, 44.1 kHz, full
+    scale 1.0 = 132 dB SPL.
+``demo.json``
+    The episode's record (as in ``episodes.json``) and the narrated moments.
+
+and returns the narration: when the alarm started, when the robot recognized it and from
+which direction (read from the percepts in the observations, as the policy sees them), what
+else it heard, when the hand let go, and the outcome (success, or the failure and why).
+Nothing is smoothed over: the narration reports what happened in the episode, whatever it is.
 """
 
 from __future__ import annotations
 
-import time
+import dataclasses
+import json
+import math
 from pathlib import Path
 
 import numpy as np
 
-from acoustic_sim.acoustics.hrtf import HRTF
-from acoustic_sim.acoustics.microphone import FULL_SCALE_PA, Microphone
-from acoustic_sim.acoustics.renderer import BinauralRenderer
-from acoustic_sim.acoustics.room import room_preset
-from acoustic_sim.acoustics import sounds
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, pa_to_db_spl, rotation_zyx
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE
+
+TASK = "reverse-alarm"
+LABEL = "reverse_alarm"
+PROFILES = ("fast", "paper")
 
 
-def head_yaw_deg(t: np.ndarray | float, seconds: float) -> np.ndarray:
-    """The demo's head trajectory: a full cosine sweep between +-60 deg (left positive)."""
-    return -60.0 * np.cos(2 * np.pi * np.asarray(t) / seconds)
+@dataclasses.dataclass
+class Trace:
+    """What the episode looked like, step by step (the runner's step hook fills it).
+
+    Attributes
+    ----------
+    t : list of float
+        Seconds since the episode's first observation, per step (0 is the reset).
+    prob : list of numpy.ndarray
+        (6,) class probabilities of the observation.
+    direction : list of numpy.ndarray
+        (6, 3) estimated direction per class (head frame; zeros: no estimate).
+    confidence : list of numpy.ndarray
+        (6,) confidence of each estimate.
+    true_az : list of dict
+        Per step, the true azimuth (deg) of each sound playing, by source name (ground truth
+        from ``info``, used only to tell the reader what was really there).
+    labels : dict
+        Source name -> sound class of every source that played.
+    audio : list of numpy.ndarray
+        (2, 705 | 706) digital ear blocks of steps 1, 2, ...
+    events : list of tuple
+        (seconds since the start, ``info`` event dict).
+    start_s : float
+        Project-clock time (s) of the episode's first observation (``env.start_s``).
+    """
+
+    t: list = dataclasses.field(default_factory=list)
+    prob: list = dataclasses.field(default_factory=list)
+    direction: list = dataclasses.field(default_factory=list)
+    confidence: list = dataclasses.field(default_factory=list)
+    true_az: list = dataclasses.field(default_factory=list)
+    labels: dict = dataclasses.field(default_factory=dict)
+    audio: list = dataclasses.field(default_factory=list)
+    events: list = dataclasses.field(default_factory=list)
+    start_s: float = 0.0
+
+    def __call__(self, env, episode, step, obs, reward, terminated, truncated, info) -> None:
+        env = env.unwrapped
+        if step == 0:
+            self.start_s = float(env.start_s)
+        self.t.append(float(info["time_s"]) - self.start_s)
+        self.prob.append(np.array(obs["class_prob"], dtype=np.float64))
+        self.direction.append(np.array(obs["class_dir"], dtype=np.float64))
+        self.confidence.append(np.array(obs["class_conf"], dtype=np.float64))
+        az = {}
+        for snd in info["sounding"]:
+            az[snd["source"]] = float(snd["azimuth_deg"])
+            self.labels[snd["source"]] = snd["label"]
+        self.true_az.append(az)
+        if step > 0:
+            self.audio.append(np.array(env.last_audio, dtype=np.float32))
+        for e in info["events"]:
+            self.events.append((float(e["time_s"]) - self.start_s, dict(e)))
 
 
-def run_demo(*, out: Path, seed: int = 0, seconds: float = 4.0) -> str:
-    import soundfile as sf
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
-    hrtf = HRTF.load("kemar")
-    room = room_preset("car_cabin")
-    head = np.asarray(room.listener)
-    alarm_pos = head + np.array([0.8, 0.0, 0.05])  # dashboard speaker, 0.8 m ahead
-    renderer = BinauralRenderer(hrtf, room, rng=rng)
-    renderer.add_source("reverse_alarm", sounds.generate("reverse_alarm", rng, seconds=seconds), alarm_pos, level_db=85.0, start=0)
-    mic = Microphone(rng=rng)
-    setup_s = time.perf_counter() - t0
-
-    n_frames = int(round(seconds * FRAME_RATE))
-    blocks, yaws = [], []
-    t1 = time.perf_counter()
-    for k in range(n_frames):
-        yaw = float(head_yaw_deg(k / FRAME_RATE, seconds))
-        renderer.set_head_pose(head, rotation_zyx(yaw))
-        blocks.append(mic(renderer.render_block()))
-        yaws.append(yaw)
-    render_s = time.perf_counter() - t1
-    audio = np.concatenate(blocks, axis=1)
-    sf.write(out / "demo.wav", audio.T, SAMPLE_RATE, subtype="FLOAT")
-
-    lengths = np.array([b.shape[1] for b in blocks])
-    pa = audio.astype(float) * FULL_SCALE_PA
-    level = pa_to_db_spl(np.sqrt(np.mean(pa**2, axis=1)))
-    ild, loud = _ild_per_frame(pa, lengths)
-    yaws = np.array(yaws)
-    # Head turned left -> the alarm is to the right -> the right ear is louder (ILD < 0).
-    corr = float(np.corrcoef(-yaws[loud], ild[loud])[0, 1])
-    ild = np.where(loud, ild, np.nan)
-    _figure(pa, ild, yaws, out / "demo.png")
-    return "\n".join([
-        "acoustic-sim demo: reverse alarm on the dashboard, car cabin, head sweeping +-60 deg",
-        f"  HRTF {hrtf.name} ({hrtf.hrir.shape[0]} directions), room {room.name} "
-        f"({'x'.join(f'{d:g}' for d in room.dimensions)} m, RT60 {room.rt60_s:.2f} s, background {room.background_db_spl:.0f} dB SPL)",
-        f"  rendered {seconds:.1f} s in {n_frames} blocks of {lengths.min()}-{lengths.max()} samples: "
-        f"{render_s * 1e3 / n_frames:.2f} ms per 16 ms block (real-time factor {seconds / render_s:.0f}), set-up {setup_s:.1f} s",
-        f"  ear levels: left {level[0]:.1f} dB SPL, right {level[1]:.1f} dB SPL",
-        f"  interaural level difference follows the head while the alarm sounds: corr(ILD, -yaw) = {corr:.2f} "
-        f"(ILD {np.nanmin(ild):+.1f} .. {np.nanmax(ild):+.1f} dB over {int(loud.sum())} frames)",
-        f"  wrote {out / 'demo.wav'} (float32, full scale = 132 dB SPL) and {out / 'demo.png'}",
-    ])
+def azimuth_deg(v) -> float:
+    """Azimuth (deg, -180..180, + left) of a head-frame vector."""
+    return math.degrees(math.atan2(float(v[1]), float(v[0])))
 
 
-def _ild_per_frame(pa: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ILD (dB, left - right) per control block, and which blocks hold the alarm (within
-    20 dB of the loudest block; the rest is background noise, whose ILD means nothing)."""
-    edges = np.r_[0, np.cumsum(lengths)]
-    e = np.array([np.sum(pa[:, a:b] ** 2, axis=1) for a, b in zip(edges[:-1], edges[1:])]) + 1e-20
-    total = e.sum(axis=1)
-    return 10 * np.log10(e[:, 0] / e[:, 1]), total > total.max() * 0.01
+def side_words(az: float) -> str:
+    """Where an azimuth (deg, + left) is, in words: in front, front left, left, behind, ..."""
+    a = (az + 180.0) % 360.0 - 180.0
+    names = ["behind", "behind on the right", "on the right", "in front on the right", "in front",
+             "in front on the left", "on the left", "behind on the left", "behind"]
+    return names[int(np.floor((a + 180.0 + 22.5) / 45.0))]
 
 
-def _figure(pa: np.ndarray, ild: np.ndarray, yaws: np.ndarray, path: Path) -> None:
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) indices of the runs of True in a boolean array."""
+    idx = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    return [(int(a), int(b) - 1) for a, b in zip(idx[::2], idx[1::2])]
+
+
+def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, success_window_s: float, seed: int,
+            profile: str) -> tuple[str, dict]:
+    """The episode in words, in time order, and the moments it names (for ``demo.json``).
+
+    What the robot heard comes from the observations (the reverse alarm's probability and
+    estimated direction, as the policy reads them); what was really there comes from
+    ``info`` (ground truth), only to tell the reader.
+
+    Parameters
+    ----------
+    trace : Trace
+    record : dict
+        The runner's record of the episode.
+    threshold : float
+        Probability from which the alarm counts as heard (the scripted policy's), 0..1.
+    front_deg : float
+        Half-width (deg of azimuth) of the region the policy accepts as "in front".
+    success_window_s : float
+        Longest alarm-to-release time of a success (the task's), s.
+    seed : int
+    profile : str
+
+    Returns
+    -------
+    text : str
+    moments : dict
+        ``alarm_start_s``, ``recognized_s``, ``recognized_azimuth_deg``, ``front_s``,
+        ``release_s`` (seconds since the episode's start, None when it did not happen) and
+        ``outcome``.
+    """
+    from acoustic_sim.acoustics.sounds import SOUND_CLASSES
+    from acoustic_sim.viz.episode import outcome_words
+
+    k = SOUND_CLASSES.index(LABEL)
+    t = np.asarray(trace.t)
+    p = np.array([x[k] for x in trace.prob])
+    d = np.array([x[k] for x in trace.direction])
+    has = np.linalg.norm(d, axis=1) > 0.5
+    heard = (p >= threshold) & has
+    az = np.array([azimuth_deg(v) if h else np.nan for v, h in zip(d, has)])
+    onset = record["target_onset_s"]
+    onset = None if onset is None else onset - trace.start_s
+    release = record.get("release_s")
+    release = None if release is None else release - trace.start_s
+    moments: dict = {"alarm_start_s": onset, "recognized_s": None, "recognized_azimuth_deg": None, "front_s": None,
+                     "release_s": release, "outcome": record["outcome"]}
+    timeline: list[tuple[float, int, str]] = []  # (time, order at equal times, text)
+
+    for te, e in trace.events:
+        if e["kind"] == "distractor":
+            detail = f" ({e['detail']})" if e["detail"] else ""
+            timeline.append((te, 1, f"distractor: {e['label'].replace('_', ' ')}{detail}"))
+    # What the robot took for a reverse alarm before the real one: the distractors' test.
+    for a, b in _runs(heard & (t < (onset if onset is not None else np.inf))):
+        where = float(np.nanmedian(az[a:b + 1]))
+        timeline.append((t[a], 2, (f"heard a reverse alarm from {where:+.0f} deg ({side_words(where)}) until "
+                                   f"{t[b]:.2f} s{_truth(trace, a, b)}")))
+    tail = []
+    if onset is None:
+        tail.append("the car's reverse alarm never started (the lever did not reach R)")
+    else:
+        true_alarm = next((x["alarm"] for x in trace.true_az if "alarm" in x), None)
+        where_true = f" (truly {true_alarm:+.0f} deg, {side_words(true_alarm)})" if true_alarm is not None else ""
+        timeline.append((onset, 0, f"the lever enters R and the car's reverse alarm starts{where_true}"))
+        after = np.flatnonzero(heard & (t >= onset))
+        if after.size:
+            j = int(after[0])
+            a = float(az[j])
+            region = "inside" if abs(a) <= front_deg else "outside"
+            timeline.append((t[j], 3, (f"recognized as a reverse alarm (p = {p[j]:.2f}), {t[j] - onset:.2f} s after it "
+                                      f"started, from {a:+.0f} deg ({side_words(a)}; {region} the front region, "
+                                      f"+-{front_deg:.0f} deg)")))
+            moments.update(recognized_s=float(t[j]), recognized_azimuth_deg=a)
+            front = after[np.abs(az[after]) <= front_deg]
+            if front.size and front[0] != j:
+                f = int(front[0])
+                timeline.append((t[f], 4, f"first heard from the front: {az[f]:+.0f} deg"))
+            if front.size:
+                moments["front_s"] = float(t[int(front[0])])
+            upto = after[t[after] <= (release if release is not None else np.inf)]
+            n_front = int(np.sum(np.abs(az[upto]) <= front_deg))
+            tail.append(f"while the alarm sounded{' and the hand held on' if release is not None else ''}, "
+                        f"{upto.size} frames heard it with a direction: median {float(np.median(az[upto])):+.0f} deg, "
+                        f"{n_front} of them from the front")
+        else:
+            best = float(np.max(p[t >= onset])) if np.any(t >= onset) else float("nan")
+            tail.append(f"the alarm was never recognized with a direction (highest probability {best:.2f}, "
+                        f"threshold {threshold:.2f})")
+    if release is not None:
+        gear = f"gear {record['gear']}" if record.get("gear") else "the lever between gears"
+        rel = f", {release - onset:.2f} s after the alarm started" if onset is not None and release >= onset else (
+            ", before the car's alarm started")
+        timeline.append((release, 5, f"the left hand lets go of the lever ({gear}){rel}"))
+    else:
+        tail.append("the left hand never let go")
+
+    verdict = outcome_words(record["outcome"])
+    if record["reaction_s"] is not None:
+        verdict += f" (reaction {record['reaction_s']:.2f} s; a success lets go within {success_window_s:.1f} s)"
+    head = (f"acoustic-sim demo: ReverseAlarm, scripted policy, seed {seed}, {profile} models "
+            f"({record['steps']} steps, {record['episode_s']:.2f} s simulated)")
+    lines = [head, *(f"  {te:5.2f} s  {text}" for te, _, text in sorted(timeline, key=lambda x: (x[0], x[1])))]
+    lines += [f"  {text}" for text in tail]
+    lines.append(f"  outcome at {t[-1]:.2f} s: {verdict}")
+    return "\n".join(lines), moments
+
+
+def _truth(trace: Trace, a: int, b: int) -> str:
+    """What was really beeping during steps a..b (ground truth), as a clause."""
+    beepers = {}
+    for x in trace.true_az[a:b + 1]:
+        for src, az in x.items():
+            if trace.labels.get(src) == LABEL:
+                beepers.setdefault(src, []).append(az)
+    if not beepers:
+        return " (nothing was beeping: a false detection)"
+    src, azs = max(beepers.items(), key=lambda kv: len(kv[1]))
+    name = "another vehicle's beeper" if src.startswith("task/") else src
+    m = float(np.median(azs))
+    return f" (it was {name}, truly {m:+.0f} deg, {side_words(m)})"
+
+
+def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_deg: float, title: str) -> None:
+    """``demo.png``: mel spectrograms, the class probabilities and the alarm's estimated azimuth.
+
+    Parameters
+    ----------
+    trace : Trace
+    moments : dict
+        From :func:`narrate`: the alarm's start, its recognition and the release are marked.
+    path : pathlib.Path
+        The PNG to write (parent folders are created).
+    threshold : float
+        The policy's probability threshold (a dotted line; estimates above it in red).
+    front_deg : float
+        Half-width of the accepted front region (shaded), deg.
+    title : str
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from scipy import signal
 
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True, constrained_layout=True)
-    for ax, ch, name in zip(axes[:2], pa, ("left ear", "right ear")):
-        f, t, s = signal.spectrogram(ch, fs=SAMPLE_RATE, nperseg=1024, noverlap=512)
-        ax.pcolormesh(t, f / 1000, 10 * np.log10(s + 1e-16), shading="auto", vmin=-60, vmax=10, cmap="magma")
+    from acoustic_sim.acoustics.sounds import SOUND_CLASSES
+    from acoustic_sim.auditory.features import MEL_FMAX_HZ, MEL_FMIN_HZ, N_MELS, hz_to_mel, mel_power
+    from acoustic_sim.auditory.frontend import analyze
+
+    k = SOUND_CLASSES.index(LABEL)
+    t = np.asarray(trace.t)
+    audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)
+    frames = analyze(audio)
+    mel_db = 10.0 * np.log10(np.maximum(mel_power(frames.spectra), 1e-20))  # (K, 2, N_MELS)
+    top = float(mel_db.max()) if mel_db.size else 0.0
+    fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True, constrained_layout=True,
+                             gridspec_kw={"height_ratios": [2, 2, 1.2, 2]})
+    ticks_hz = [f for f in (100, 250, 500, 1000, 2000, 4000, 8000, 16000) if MEL_FMIN_HZ <= f <= MEL_FMAX_HZ]
+    m0, m1 = hz_to_mel(MEL_FMIN_HZ), hz_to_mel(MEL_FMAX_HZ)
+    tick_pos = [(hz_to_mel(f) - m0) / (m1 - m0) * (N_MELS - 1) for f in ticks_hz]
+    image = None
+    for ax, ear, name in ((axes[0], 0, "left ear"), (axes[1], 1, "right ear")):
+        if len(frames):
+            image = ax.imshow(mel_db[:, ear, :].T - top, origin="lower", aspect="auto", cmap="magma", vmin=-80, vmax=0,
+                              extent=(frames.time_s[0] - 1 / FRAME_RATE, frames.time_s[-1], -0.5, N_MELS - 0.5),
+                              interpolation="nearest")
+        ax.set_yticks(tick_pos, [f"{f / 1000:g}" for f in ticks_hz])
         ax.set_ylabel(f"{name}\nfrequency (kHz)")
-        ax.set_ylim(0, 8)
-    tt = np.arange(ild.size) / FRAME_RATE
-    axes[2].plot(tt, ild, ".", label="ILD left - right (dB), alarm on")
-    ax2 = axes[2].twinx()
-    ax2.plot(tt, yaws, color="tab:orange", label="head yaw (deg, left +)")
-    ax2.set_ylabel("head yaw (deg)")
-    axes[2].set_ylabel("ILD (dB)")
-    axes[2].set_xlabel("time (s)")
-    axes[0].set_title("Reverse alarm 0.8 m ahead in the car cabin while the head sweeps +-60 deg")
-    fig.legend(loc="lower right")
+    if image is not None:
+        fig.colorbar(image, ax=axes[:2], label="mel band power (dB re loudest)", shrink=0.8, fraction=0.03, pad=0.01)
+    p = np.array([x[k] for x in trace.prob])
+    axes[2].plot(t, p, color="tab:red", lw=1.5, label="reverse alarm")
+    for j, c in enumerate(SOUND_CLASSES):
+        if j != k:
+            axes[2].plot(t, [x[j] for x in trace.prob], lw=0.8, alpha=0.6, label=c.replace("_", " "))
+    axes[2].axhline(threshold, color="k", lw=0.6, ls=":")
+    axes[2].set_ylim(-0.02, 1.02)
+    axes[2].set_ylabel("class\nprobability")
+    axes[2].legend(loc="upper left", fontsize=7, ncol=3)
+    axes[3].axhspan(-front_deg, front_deg, color="tab:green", alpha=0.08, lw=0,
+                    label=f"front region (+-{front_deg:g} deg)")
+    d = np.array([x[k] for x in trace.direction])
+    has = np.linalg.norm(d, axis=1) > 0.5
+    az = np.array([azimuth_deg(v) for v in d])
+    on = has & (p >= threshold)
+    axes[3].scatter(t[has & ~on], az[has & ~on], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
+    axes[3].scatter(t[on], az[on], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
+    for src, style in _true_tracks(trace):
+        ys = np.array([x.get(src, np.nan) for x in trace.true_az])
+        axes[3].plot(t, ys, **style)
+    axes[3].set_ylim(-185, 185)
+    axes[3].set_yticks([-180, -90, 0, 90, 180], ["-180\nbehind", "-90\nright", "0\nfront", "90\nleft", "180\nbehind"])
+    axes[3].set_ylabel("reverse alarm\nazimuth (deg)")
+    axes[3].set_xlabel("time since the episode's start (s)")
+    axes[3].legend(loc="upper left", fontsize=7, ncol=2)
+    marks = [("alarm_start_s", "alarm starts", "tab:red"), ("recognized_s", "recognized", "tab:orange"),
+             ("release_s", "hand lets go", "tab:green")]
+    t_end = max(float(t[-1]) if t.size else 1.0, 0.5)
+    for row, (key, label, color) in enumerate(marks):
+        x = moments.get(key)
+        if x is None:
+            continue
+        for ax in axes:
+            ax.axvline(x, color=color, lw=1.2, ls="--")
+        right = x > 0.85 * t_end  # near the end: write the label to the left of its line
+        axes[0].text(x, N_MELS - 2 - 22 * row, f"{label} " if right else f" {label}", color=color, va="top",
+                     ha="right" if right else "left", fontsize=8, bbox={"facecolor": "white", "alpha": 0.8, "lw": 0, "pad": 1})
+    for te, e in trace.events:
+        if e["kind"] == "distractor":
+            for ax in axes[2:]:
+                ax.axvline(te, color="0.4", lw=0.8, ls=":")
+            axes[3].text(te, -178, f" {e['label'].replace('_', ' ')}", color="0.3", va="bottom", ha="right", fontsize=7,
+                         rotation=90)
+    axes[0].set_title(title, fontsize=10)
+    axes[3].set_xlim(0.0, t_end)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _true_tracks(trace: Trace) -> list[tuple[str, dict]]:
+    """The beeping sources (the car's alarm, another vehicle's beeper) and how to draw their
+    true azimuth."""
+    out = []
+    for src, label in trace.labels.items():
+        if label != LABEL:
+            continue
+        if src == "alarm":
+            out.append((src, {"color": "k", "lw": 1.2, "label": "true: the car's alarm"}))
+        else:
+            out.append((src, {"color": "tab:purple", "lw": 1.2, "ls": "--", "label": "true: another vehicle's beeper"}))
+    return out
+
+
+def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True) -> str:
+    """Run the demo episode and write ``OUT/demo.{png,rrd,wav,json}``; return the narration.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path
+        Output folder (created).
+    seed : int
+        Episode seed, >= 0: same seed, same episode.
+    profile : str
+        Auditory models: ``fast`` (small; trained in about a minute on a CPU the first time,
+        then cached) or ``paper`` (the paper's networks; several minutes to train the first time).
+    progress : bool
+        Show the models' training progress bars (the episode itself takes seconds).
+
+    Returns
+    -------
+    str
+        The narration (also in ``demo.json``), ending with the files written.
+
+    Raises
+    ------
+    ConfigError
+        For a bad seed or profile.
+    RecordingError
+        If ``OUT/demo.rrd`` cannot be written.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
+    if profile not in PROFILES:
+        raise ConfigError(f"profile must be one of {', '.join(PROFILES)}, got {profile!r}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output folder {str(out)!r} is a file")
+    from acoustic_sim.runner import _tasks_module, make_env, run_episode
+    from acoustic_sim.viz.episode import EpisodeRecorder
+
+    recorder = EpisodeRecorder(out / "demo.rrd", first_seed=int(seed), name=f"demo: reverse alarm, seed {int(seed)}")
+    trace = Trace()
+    try:
+        env = make_env(TASK, profile=profile)
+        try:
+            _tasks_module()
+            from policies import make_policy
+
+            policy = make_policy("scripted", env)
+
+            def hook(*args):
+                trace(*args)
+                recorder(*args)
+
+            record = run_episode(env, policy, int(seed), step_callback=hook)
+        finally:
+            env.close()
+    finally:
+        recorder.close()
+    threshold = float(policy.threshold)
+    text, moments = narrate(trace, record, threshold=threshold, front_deg=float(policy.front_deg),
+                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile)
+    title = (f"ReverseAlarm, scripted policy, seed {seed}, {profile} models: "
+             f"{record['outcome'].replace('_', ' ')}")
+    figure(trace, moments, out / "demo.png", threshold=threshold, front_deg=float(policy.front_deg), title=title)
+    import soundfile as sf
+
+    audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)
+    sf.write(out / "demo.wav", audio.T, SAMPLE_RATE, subtype="FLOAT")
+    (out / "demo.json").write_text(json.dumps({"task": TASK, "policy": "scripted", "profile": profile, "seed": int(seed),
+                                               "record": record, "moments": moments, "narration": text.splitlines()},
+                                              indent=1) + "\n")
+    files = ", ".join(str(out / f"demo.{ext}") for ext in ("png", "rrd", "wav", "json"))
+    return f"{text}\nwrote {files}\nview the recording with: acoustic-sim play {out / 'demo.rrd'}"
+
+
+__all__ = ["Trace", "figure", "narrate", "run_demo", "side_words"]
