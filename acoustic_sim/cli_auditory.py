@@ -81,6 +81,16 @@ def add_parsers(sub) -> None:
     ep.add_argument("--quick", action="store_true", help="fewer directions and sounds, small models (about 3 minutes; for tests)")
     ep.add_argument("--seed", type=int, default=0, help="random seed")
     ep.set_defaults(func=cmd_eval_paper)
+    er = esub.add_parser(
+        "readme",
+        help="copy a finished run's tables and figures into the README",
+        description="Replaces the README's section between <!-- paper:begin --> and <!-- paper:end --> with "
+        "the tables of RESULTS/REPORT.md (generated from its JSON files) and links to its figures, so the "
+        "README never holds a hand-typed number. Run it after `eval paper --out results/paper`.",
+    )
+    er.add_argument("--results", type=Path, default=Path("results/paper"), help="a finished eval paper folder (default results/paper)")
+    er.add_argument("--readme", type=Path, default=Path("README.md"), help="the README to update (default README.md)")
+    er.set_defaults(func=cmd_eval_readme)
 
 
 def _read_wav(path: Path) -> np.ndarray:
@@ -167,6 +177,18 @@ def cmd_detect(args) -> int:
     detected = [c for c, v in zip(cnn.classes, overall) if v >= args.threshold]
     sys.stdout.write(json.dumps({"overall": True, **{c: round(float(v), 4) for c, v in zip(cnn.classes, overall)},
                                  "detected": detected, "threshold": args.threshold}) + "\n")
+    return 0
+
+
+def cmd_eval_readme(args) -> int:
+    from acoustic_sim.experiments.report import update_readme
+
+    if not (args.results / "localization.json").is_file():
+        raise ConfigError(f"{args.results}: no finished eval paper run there (localization.json is missing)")
+    if not args.readme.is_file():
+        raise ConfigError(f"{args.readme}: no such file")
+    changed = update_readme(args.readme, args.results, image_prefix=args.results.as_posix())
+    print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.results}")
     return 0
 
 
