@@ -106,9 +106,11 @@ def test_batched_existence_equals_per_bin_loop(fast_bank):
     # Leading axes are free; a single frame works too.
     np.testing.assert_allclose(fast_bank.existence(features[0]), batched[0], rtol=1e-5, atol=1e-6)
     # A subset of the bank's networks, in any order.
-    subset = np.array([5, 0, 3])
-    np.testing.assert_allclose(fast_bank.existence(features[:, subset], subset=subset), batched[:, subset],
-                               rtol=1e-5, atol=1e-6)
+    # Both paths: a few gathered networks, or more than GATHER_MAX_BINS through the whole bank.
+    for subset in (np.array([5, 0, 3]), np.array([9, 1, 4, 12, 7, 0, 15])):
+        assert (subset.size > S.GATHER_MAX_BINS) == (subset.size == 7)
+        np.testing.assert_allclose(fast_bank.existence(features[:, subset], subset=subset), batched[:, subset],
+                                   rtol=1e-5, atol=1e-6)
     assert fast_bank.existence(np.zeros((0, 5)), subset=np.array([], int)).shape == (0, len(fast_bank.grid))
     with pytest.raises(ConfigError, match="subset"):
         fast_bank.existence(features[:, :1], subset=[fast_bank.n_bins])
