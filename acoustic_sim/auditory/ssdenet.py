@@ -334,8 +334,8 @@ below about 1.5 kHz, sampled every 65-200 Hz. The full ``eval paper`` run (musas
 ``results/paper``): SSDENet below MUSIC on 12 of the 13 signals (triangle 500 Hz 11.2
 against 17.0 deg, square 500 Hz 9.1 against 17.9, white noise 4.5 against 8.3); the one it
 loses is the 2 kHz sine (47.5 against 44.0), a single bin, where the lattice changes
-nothing. A pure tone off the lattice (a 750 Hz sine,
-a voice's harmonics) meets a network only near 300-1800 Hz or not at all: a bank of a
+nothing. A pure tone off the lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper
+harmonics) meets no network, and one below it only where the fill has a bin: a bank of a
 subset of bins cannot localise every tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
