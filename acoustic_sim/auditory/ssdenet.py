@@ -727,20 +727,22 @@ class SSDENetBank(nn.Module):
         lead = f.shape[:-2]
         if n == 0:
             return np.zeros(lead + (0, self.n_directions), np.float32)
+        keep = None
         if idx is not None and idx.size > GATHER_MAX_BINS:
             # Copying the weights of many bins costs more than running the whole bank on
             # contiguous weights: place the features at their bins (zeros elsewhere) and keep
             # the subset's outputs.
             full = np.zeros(lead + (self.n_bins, N_FEATURES), np.float32)
             full[..., idx, :] = f
-            return self.existence(full)[..., idx, :]
-        if idx is not None:
+            f, n, keep = full, self.n_bins, idx
+        elif idx is not None:
             sel = torch.from_numpy(idx.astype(np.int64))
             weights = tuple(w.index_select(0, sel) for w in weights)
         x = torch.from_numpy(np.ascontiguousarray(f.reshape(-1, n, N_FEATURES).transpose(1, 0, 2)))
         with torch.inference_mode():
             out = ssdenet_forward(x, *weights)  # (n, N, D)
-        return out.transpose(0, 1).reshape(lead + (n, self.n_directions)).numpy()
+        maps = out.transpose(0, 1).reshape(lead + (n, self.n_directions)).numpy()
+        return maps if keep is None else maps[..., keep, :]
 
     def frame_maps(self, spectra, valid=None) -> tuple[np.ndarray, np.ndarray]:
         """P(d) of each frame: existence summed over the frame's valid bank bins.
