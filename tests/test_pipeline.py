@@ -214,3 +214,49 @@ def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
     assert counts[2.0] < 0.35 * counts[None]
     with pytest.raises(ConfigError, match="onset_ratio"):
         AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, onset_ratio=0.5)
+
+
+class _DetectsSome:
+    """Declares classes 0 and 2 in every frame, each with its own characteristic bins."""
+
+    def __init__(self, real, bins):
+        self.classes = real.classes
+        self.characteristic_bins = {real.classes[0]: bins[::2], real.classes[2]: bins[1:5], real.classes[1]: bins}
+
+    def predict(self, patch):
+        p = np.zeros((2, len(self.classes)), np.float32)
+        p[:, [0, 2]] = 0.9
+        return p
+
+
+def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, kemar):
+    """The streaming estimate (maps computed once per frame and bin, only for the detected
+    classes' bins) equals the definition: per class, the existence maps of the whole bank
+    summed over the last direction_frames frames and over the valid bins that are the class's."""
+    from acoustic_sim.auditory.features import ild_ipd
+    from acoustic_sim.auditory.frontend import analyze
+    from acoustic_sim.auditory.ssdenet import valid_bins
+
+    bank = pipe.ssdenet
+    audio = _render(kemar, "white_noise", -60.0, room="car_cabin", seconds=0.6, distance=0.8, level=70.0)
+    cnn = _DetectsSome(pipe.melcnn, bank.bins)
+    p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, direction_frames=5, onset_ratio=None)
+    percepts = p.process(audio)
+    x = analyze(audio).spectra
+    valid = valid_bins(x, p.noise_power, p.factor)[:, bank.bins]  # (K, n_bank)
+    sel = x[:, :, bank.bins]
+    maps = bank.existence(ild_ipd(sel[:, 0], sel[:, 1]))  # (K, n_bank, D): every bin of every frame
+    checked = 0
+    for k in range(10, len(percepts)):
+        for c in (0, 2):
+            own = np.isin(bank.bins, cnn.characteristic_bins[p.classes[c]])
+            use = valid[k - 4 : k + 1] & own  # the last 5 frames
+            if not use.any():
+                continue
+            want = (maps[k - 4 : k + 1] * use[..., None]).sum(axis=(0, 1))
+            got = percepts[k].directions[p.classes[c]]
+            assert got.n_bins == int(use.sum())
+            np.testing.assert_allclose(got.existence, want, rtol=1e-4, atol=1e-4)
+            checked += 1
+        assert p.classes[1] not in percepts[k].directions  # not detected: no estimate
+    assert checked >= 20

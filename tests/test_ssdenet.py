@@ -112,6 +112,14 @@ def test_batched_existence_equals_per_bin_loop(fast_bank):
         np.testing.assert_allclose(fast_bank.existence(features[:, subset], subset=subset), batched[:, subset],
                                    rtol=1e-5, atol=1e-6)
     assert fast_bank.existence(np.zeros((0, 5)), subset=np.array([], int)).shape == (0, len(fast_bank.grid))
+    # Within a recurring set (gathered once, kept): the same numbers, for any subset of it.
+    within = np.array([12, 0, 3, 5, 9])
+    for subset in (np.array([5, 0, 3]), np.array([9]), within):
+        np.testing.assert_allclose(fast_bank.existence(features[:, subset], subset=subset, within=within),
+                                   batched[:, subset], rtol=1e-5, atol=1e-6)
+    assert len([k for k in fast_bank._gathered if k[0] == np.sort(within).tobytes()]) == 1
+    with pytest.raises(ConfigError, match="within"):
+        fast_bank.existence(features[:, [1]], subset=[1], within=within)
     with pytest.raises(ConfigError, match="subset"):
         fast_bank.existence(features[:, :1], subset=[fast_bank.n_bins])
 
@@ -407,3 +415,21 @@ def test_other_errors(kemar, grid, tmp_path):
     with pytest.raises(ConfigError, match="cannot write checkpoint"):
         ckpt.save_checkpoint(tmp_path / "taken", {}, {"kind": "x"})
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_within_cache_follows_weight_updates(fast_bank):
+    """Gathered weights kept for ``within`` are not reused once the weights change in place."""
+    import copy
+
+    import torch
+
+    bank = copy.deepcopy(fast_bank)
+    rng = np.random.default_rng(8)
+    features = ild_ipd(*(rng.standard_normal((2, 3)) + 1j * rng.standard_normal((2, 3))))  # (3, 5)
+    subset = np.array([1, 4, 6])
+    before = bank.existence(features, subset=subset, within=subset)
+    with torch.no_grad():
+        bank.b3.add_(1.0)  # raises every output
+    after = bank.existence(features, subset=subset, within=subset)
+    np.testing.assert_allclose(after, bank.existence(features, subset=subset), rtol=1e-5, atol=1e-6)
+    assert np.all(after > before)

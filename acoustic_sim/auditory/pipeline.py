@@ -155,7 +155,8 @@ class AuditoryPipeline:
         self.volumes: deque = deque(maxlen=MEL_FRAMES)
         self.direction_frames = int(direction_frames)
         # Per recent frame: [valid bank bins (n_bank,), ILD/IPD at them (n_valid, 5),
-        # existence maps (n_valid, D) or None until a detection needs them].
+        # existence maps (n_bank, D) or None until a detection needs them, which bins of
+        # them have been computed (n_bank,)].
         self.evidence: deque = deque(maxlen=self.direction_frames)
         self.onset_ratio = None if onset_ratio is None else float(onset_ratio)
         self._last_power: np.ndarray | None = None  # (n_bank,) both ears, the previous frame
@@ -218,7 +219,7 @@ class AuditoryPipeline:
             self._last_power = power
             valid &= power > self.onset_ratio * last if last is not None else True
         sel = x[:, self.ssdenet.bins[valid]]
-        self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None])
+        self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None, np.zeros_like(valid)])
         patch = self.mel.patch()
         volume = np.mean(np.asarray(self.volumes), axis=0)
         p_ears = self.melcnn.predict(patch)  # (2, C)
@@ -232,21 +233,34 @@ class AuditoryPipeline:
                        directions=directions, mel=patch[:, -1, :].copy(), volume=volume)
 
     def _directions(self, class_indices: list[int]) -> dict:
-        """SSDENet estimates for the given classes from the recent frames' evidence."""
-        n_bank, n_dirs = self.ssdenet.n_bins, len(self.grid)
+        """SSDENet estimates for the given classes from the recent frames' evidence.
+
+        Only the networks of valid bins within the detected classes' characteristic bins
+        run (the others would be summed by no class); a frame's maps are computed once per
+        bin and kept while the frame is in the evidence window.
+        """
+        n_dirs = len(self.grid)
         masks = self._class_masks[class_indices]  # (c, n_bank)
+        union = masks.any(axis=0)
+        within = np.flatnonzero(union)
         total = np.zeros((len(class_indices), n_dirs), np.float64)
         counts = np.zeros(len(class_indices), np.int64)
         for item in self.evidence:
-            valid, features, maps = item
-            if not valid.any():
+            valid, features, maps, have = item
+            used = valid & union
+            if not used.any():
                 continue
-            if maps is None:
-                used = np.flatnonzero(valid)
-                maps = item[2] = self.ssdenet.existence(features, subset=None if used.size == n_bank else used)
-            rows = masks[:, valid]  # (c, n_valid)
-            total += rows.astype(np.float32) @ maps
-            counts += rows.sum(axis=1)
+            need = used & ~have
+            if need.any():
+                if maps is None:
+                    maps = item[2] = np.zeros((valid.size, n_dirs), np.float32)
+                pos = np.flatnonzero(need)
+                rows = np.searchsorted(np.flatnonzero(valid), pos)  # features are stored for the valid bins
+                maps[pos] = self.ssdenet.existence(features[rows], subset=pos, within=within)
+                have |= need
+            sel = masks[:, used]  # (c, n_used)
+            total += sel.astype(np.float32) @ maps[used]
+            counts += sel.sum(axis=1)
         return {
             self.classes[c]: _estimate(total[i].astype(np.float32), self.grid, int(counts[i]), "ssdenet")
             for i, c in enumerate(class_indices) if counts[i]
