@@ -178,7 +178,7 @@ def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
     out = {}
     for frames in (1, 12):
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
-                             direction_frames=frames, onset_ratio=None)
+                             direction_frames=frames, precedence=None)
         out[frames] = p.process(audio)
     has = {f: np.array([bool(q.directions) for q in ps]) for f, ps in out.items()}
     last = int(np.flatnonzero(has[1]).max())  # the last frame that still holds burst energy
@@ -193,7 +193,7 @@ def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
 
 
 def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
-    """A steady noise from the right: with the gate, only the frames of its onset (and the
+    """The ``"ratio"`` mode. A steady noise from the right: with the gate, only the frames of its onset (and the
     chance frames where a bin's power doubles) give a direction; without it, every frame."""
     rng = np.random.default_rng(5)
     r = BinauralRenderer(kemar, room_preset("anechoic"), rng=rng)
@@ -204,7 +204,7 @@ def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
     counts = {}
     for ratio in (None, 2.0):
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
-                             direction_frames=1, onset_ratio=ratio)
+                             direction_frames=1, precedence=None if ratio is None else "ratio", onset_ratio=ratio or 2.0)
         out = p.process(audio)
         onset = int(np.ceil(22050 / 705.6))  # the first frame that reaches the noise
         est = out[onset + 2].directions.get(pipe.classes[0])
@@ -214,6 +214,8 @@ def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
     assert counts[2.0] < 0.35 * counts[None]
     with pytest.raises(ConfigError, match="onset_ratio"):
         AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, onset_ratio=0.5)
+    with pytest.raises(ConfigError, match="precedence"):
+        AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, precedence="first")
 
 
 class _DetectsSome:
@@ -240,7 +242,7 @@ def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, k
     bank = pipe.ssdenet
     audio = _render(kemar, "white_noise", -60.0, room="car_cabin", seconds=0.6, distance=0.8, level=70.0)
     cnn = _DetectsSome(pipe.melcnn, bank.bins)
-    p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, direction_frames=5, onset_ratio=None)
+    p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, direction_frames=5, precedence=None)
     percepts = p.process(audio)
     x = analyze(audio).spectra
     valid = valid_bins(x, p.noise_power, p.factor)[:, bank.bins]  # (K, n_bank)

@@ -24,17 +24,18 @@ and kept; the networks of a class set run on weights gathered once
 ``within=``). With the paper models that brought ``acoustic-sim bench pipeline``'s
 ``frame_ms_median`` from 4.5 to 3.2 ms (the alarm has 3 of the 32 bank bins).
 
-Precedence (``onset_ratio``): in a small reverberant space (the car cabin: RT60 0.13 s,
-the direct sound 7 dB below the reverberant field at 0.8 m) the frames after a sound's
-onset hold mostly its reverberation, whose interaural cues are those of a diffuse field
-(ILD and IPD near zero: "in front"), and they outnumber the onset frames. Listeners weight
-the first wavefront (the precedence effect); here a bin counts toward a direction only
-in frames where its power (both ears) rose at least ``onset_ratio`` times over the previous
-frame. Measured in the cabin with the paper models (8 seeds each): a ratchet click at
--108 deg, 0.65 m, is placed on the right in 1/8 without and 5/8 with it; at -90 deg,
-0.5 m, 3/8 and 7/8; a reverse alarm behind 1/8 and 4/8 (one-off measurements, session 3;
-tests/test_pipeline.py checks the mechanism, the task regression tests the outcome).
-:meth:`localize` (the paper's experiments) keeps the paper's rule alone.
+Precedence (``precedence``): in a small reverberant space (the car cabin: RT60 0.13 s,
+the direct sound 7 dB below the reverberant field at 0.8 m) a frame's interaural cues are
+those of the direct sound mixed with its reflections, whose energy arrives within 1-2 ms
+of it; listeners localize by the first wavefront (the precedence effect). The default,
+``"wavefront"``, does so: the features of a frame come from the spectrum of a 1.75 ms
+window at an onset in the ear signals (:class:`~acoustic_sim.auditory.precedence.FirstWavefront`,
+which has the measurements), and frames without an onset give no direction evidence; the
+bins used are the frame's valid bins. ``"ratio"`` is the previous design: a bin counts
+only in frames where its power (both ears) rose ``onset_ratio`` times over the previous
+frame (session 3: a ratchet click at -108 deg, 0.65 m, on the right in 5/8 instead of 1/8;
+the first wavefront: 98 % of 46 clicks, see :mod:`~acoustic_sim.auditory.precedence`).
+``None`` is the paper's rule alone, which :meth:`localize` (the paper's experiments) keeps.
 
 The noise that the validity threshold refers to is the robot's own driving noise (the
 paper: 10 times its spectrum per bin). Without a robot (a WAV file), the default is the
@@ -52,13 +53,14 @@ from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.features import MEL_FRAMES, MelHistory, ear_volume, ild_ipd, log_mel_patches
-from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze
+from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_frequencies
 from acoustic_sim.auditory.melcnn import MelCNN, fuse
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
+from acoustic_sim.auditory.precedence import FirstWavefront
 from acoustic_sim.auditory.ssdenet import SSDENetBank, noise_power_spectrum, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import SAMPLE_RATE, sph_to_vec, vec_to_sph
+from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, sph_to_vec, vec_to_sph
 
 METHODS = ("ssdenet", "music", "gcc-phat")
 """Localization methods of :meth:`AuditoryPipeline.localize`."""
@@ -70,7 +72,10 @@ DIRECTION_FRAMES = 12
 """Frames (0.19 s) of existence maps that a detected class's direction sums by default."""
 
 ONSET_RATIO = 2.0
-"""Default precedence gate: a bin's power must have doubled (+3 dB) since the last frame."""
+"""The ``"ratio"`` precedence gate: a bin's power must have doubled (+3 dB) since the last frame."""
+
+PRECEDENCE = ("wavefront", "ratio", None)
+"""Precedence modes of the streaming pipeline (module docstring); the first is the default."""
 
 
 def microphone_noise_power(seconds: float = 1.0) -> np.ndarray:
@@ -115,16 +120,20 @@ class AuditoryPipeline:
     direction_frames : int
         Frames whose existence maps a class's direction sums (default
         :data:`DIRECTION_FRAMES`, 0.19 s; 1 = the current frame only).
-    onset_ratio : float or None
-        Precedence: a bin is valid only where its power rose by this factor over the
-        previous frame (default :data:`ONSET_RATIO`; None: the paper's rule alone).
+    precedence : str or None
+        ``"wavefront"`` (default: features from the first wavefront of onsets),
+        ``"ratio"`` (bins whose power rose ``onset_ratio`` times since the last frame) or
+        None (the paper's rule alone); see the module docstring.
+    onset_ratio : float
+        The ``"ratio"`` mode's factor (default :data:`ONSET_RATIO`), >= 1.
 
     Use :meth:`load` to get one with trained (cached) models.
     """
 
     def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
-                 direction_frames: int | None = None, onset_ratio: float | None = ONSET_RATIO) -> None:
+                 direction_frames: int | None = None, precedence: str | None = "wavefront",
+                 onset_ratio: float = ONSET_RATIO) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -135,8 +144,10 @@ class AuditoryPipeline:
         if not (np.isfinite(factor) and factor > 0):
             raise ConfigError(f"factor must be > 0, got {factor}")
         direction_frames = DIRECTION_FRAMES if direction_frames is None else direction_frames
-        if onset_ratio is not None and not (np.isfinite(onset_ratio) and onset_ratio >= 1.0):
-            raise ConfigError(f"onset_ratio must be >= 1 (or None: off), got {onset_ratio}")
+        if precedence not in PRECEDENCE:
+            raise ConfigError(f"precedence must be one of {PRECEDENCE}, got {precedence!r}")
+        if not (onset_ratio is not None and np.isfinite(onset_ratio) and onset_ratio >= 1.0):
+            raise ConfigError(f"onset_ratio must be >= 1, got {onset_ratio}")
         if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
             raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
         self.hrtf = hrtf
@@ -163,13 +174,18 @@ class AuditoryPipeline:
         # existence maps (n_bank, D) or None until a detection needs them, which bins of
         # them have been computed (n_bank,)].
         self.evidence: deque = deque(maxlen=self.direction_frames)
-        self.onset_ratio = None if onset_ratio is None else float(onset_ratio)
+        self.precedence = precedence
+        self.onset_ratio = float(onset_ratio)
+        self.wavefront = FirstWavefront() if precedence == "wavefront" else None
+        if self.wavefront is not None:
+            self._short_ok = bin_frequencies() >= self.wavefront.min_hz
         self._last_power: np.ndarray | None = None  # (n_bank,) both ears, the previous frame
 
     @classmethod
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
-             onset_ratio: float | None = ONSET_RATIO, progress: bool = True) -> AuditoryPipeline:
+             precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO,
+             progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -186,7 +202,7 @@ class AuditoryPipeline:
         bank = SSDENetBank.load_or_train(ears, grid, profile, progress=progress)
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
-                   direction_frames=direction_frames, onset_ratio=onset_ratio)
+                   direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -207,23 +223,36 @@ class AuditoryPipeline:
         self.volumes.clear()
         self.evidence.clear()
         self._last_power = None
+        if self.wavefront is not None:
+            self.wavefront.reset()
 
     # -- streaming ----------------------------------------------------------------------------
     def process(self, block) -> list[Percept]:
         """Push a (2, n) block of digital ear samples; one Percept per completed ear frame."""
         frames = self.frontend.push(block)
+        if self.wavefront is not None:
+            self.wavefront.push(block)
         return [self._frame(int(k), float(t), x) for k, t, x in zip(frames.index, frames.time_s, frames.spectra)]
 
     def _frame(self, k: int, t: float, x: np.ndarray) -> Percept:
         self.mel.push(x)
         self.volumes.append(ear_volume(x))
         valid = valid_bins(x, self.noise_power, self.factor)[self.ssdenet.bins]
-        if self.onset_ratio is not None:
+        cues = x  # the spectra the interaural features come from
+        if self.precedence == "wavefront":
+            onset = self.wavefront.take(int(frame_end_sample(k)))
+            if onset is None:
+                valid[:] = False
+            else:
+                # The window spans too few periods of the lowest bins to carry their
+                # phase: there the frame's own spectra give the features.
+                cues = np.where(self._short_ok[None, :], onset, x)
+        elif self.precedence == "ratio":
             power = (x.real**2 + x.imag**2)[:, self.ssdenet.bins].sum(axis=0)
             last = self._last_power
             self._last_power = power
             valid &= power > self.onset_ratio * last if last is not None else True
-        sel = x[:, self.ssdenet.bins[valid]]
+        sel = cues[:, self.ssdenet.bins[valid]]
         self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None, np.zeros_like(valid)])
         patch = self.mel.patch()
         volume = np.mean(np.asarray(self.volumes), axis=0)

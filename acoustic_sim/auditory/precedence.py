@@ -1,0 +1,169 @@
+"""The precedence effect for the streaming pipeline: spectra of the first wavefront.
+
+In a small reverberant space the ear frames (2048 samples, 46 ms) hold a sound's direct
+path together with its reflections, and in the car cabin the reflections win: the side
+window 0.45 m from the left ear and the floor under the parking brake's pawl return
+almost as much energy as the direct path, within 1-2 ms of it. The frame's interaural
+cues are then those of the mixture (measured from the cabin's impulse response: the
+pawl's ILD is -15 to -21 dB in its direct path at 2-8 kHz, -1 to -3 dB over the whole
+response), and SSDENet, trained on free-field HRTFs, places the sound near the median
+plane or on the wrong side. Listeners localize such sounds by their first wavefront
+(the precedence effect: a reflection within about 1-40 ms does not pull the perceived
+direction).
+
+:class:`FirstWavefront` does that on the sample clock: it finds onsets in the ear signals
+(the energy of 0.5 ms blocks, high-passed at 1 kHz, rising ``ratio`` times above the
+median of the preceding 1-10 ms) and returns the spectrum of a short window at each onset
+(0.25 ms before to 1.5 ms after it, Tukey-tapered, zero-padded to the front end's 2048
+points, so its bins are the front end's). That window holds the direct path of both ears
+and ends before most first reflections arrive; the pipeline computes the ILD/IPD features
+from it in place of the frame's, for the frame the window completes in, at the bins above
+:attr:`FirstWavefront.min_hz` (two periods in the window, 1.1 kHz; below, the window's
+spectrum is its taper's and the frame's features are kept). Frames without an onset give
+no direction evidence.
+
+Measured on 30 ParkingBrake episodes (kemar, a steady pull, 46 pawl clicks and 134 relay
+clicks on their own): SSDENet on the frames' features (with the power-ratio gate, the
+previous design) placed 72 % of the pawl's clicks and 10 % of the relay's on the right
+(paper bank); on the first-wavefront spectra 98 % and 0 % (fast bank: 89 % and 1 %).
+The scripted policies over 30 episodes (seeds 100-129, kemar), frames' features with the
+power-ratio gate -> first wavefront: ParkingBrake success 0.40 -> 0.87 (paper models;
+false releases 0.20 -> 0.10) and 0.53 -> 0.67 (fast); ReverseAlarm 0.37 -> 0.70 (paper)
+and 0.47 -> 0.60 (fast); CallResponse (fast, 20 episodes) stays at 1.0.
+
+Hand-written because no library in the project detects onsets on a streaming sample
+clock (scipy has the filters, which are used).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal as sp_signal
+
+from acoustic_sim.auditory.frontend import N_FFT
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import SAMPLE_RATE
+
+
+class FirstWavefront:
+    """Streaming onset detector that keeps the spectrum of each onset's first wavefront.
+
+    Parameters
+    ----------
+    sample_rate : int
+        Hz.
+    highpass_hz : float
+        Onsets are detected above this frequency (2nd-order Butterworth), where the
+        head shadows and the reflections' delays are long against the period.
+    block_ms : float
+        Energy blocks (both ears summed), ms.
+    baseline_ms : tuple of 2 float
+        The baseline is the median block energy from ``baseline_ms[1]`` to
+        ``baseline_ms[0]`` before a block.
+    ratio : float
+        A block is an onset when its energy exceeds ``ratio`` times the baseline and the
+        previous block's did not (> 1).
+    refractory_ms : float
+        No new onset this soon after the last one.
+    window_ms : tuple of 2 float
+        The first-wavefront window: from ``window_ms[0]`` before the onset block to
+        ``window_ms[1]`` after its start.
+    n_fft : int
+        FFT size of the window's spectrum (the front end's, so the bins agree).
+    """
+
+    def __init__(self, *, sample_rate: int = SAMPLE_RATE, highpass_hz: float = 1000.0, block_ms: float = 0.5,
+                 baseline_ms: tuple[float, float] = (1.0, 10.0), ratio: float = 8.0, refractory_ms: float = 15.0,
+                 window_ms: tuple[float, float] = (0.25, 1.5), n_fft: int = N_FFT) -> None:
+        if not 0.0 < highpass_hz < sample_rate / 2:
+            raise ConfigError(f"highpass_hz must be in (0, {sample_rate / 2}), got {highpass_hz}")
+        if not (np.isfinite(ratio) and ratio > 1.0):
+            raise ConfigError(f"ratio must be > 1, got {ratio}")
+        lo, hi = baseline_ms
+        if not 0.0 <= lo < hi:
+            raise ConfigError(f"baseline_ms must be (near, far) with 0 <= near < far, got {baseline_ms}")
+        pre, post = window_ms
+        if not (pre >= 0.0 and post > 0.0):
+            raise ConfigError(f"window_ms must be (before >= 0, after > 0), got {window_ms}")
+        self.sample_rate = int(sample_rate)
+        self.block = max(1, round(block_ms * 1e-3 * sample_rate))
+        self.near = max(1, round(lo * 1e-3 * sample_rate / self.block))
+        self.far = max(self.near + 1, round(hi * 1e-3 * sample_rate / self.block))
+        self.ratio = float(ratio)
+        self.refractory = max(1, round(refractory_ms * 1e-3 * sample_rate / self.block))
+        self.pre = round(pre * 1e-3 * sample_rate)
+        self.post = round(post * 1e-3 * sample_rate)
+        if self.pre + self.post > n_fft:
+            raise ConfigError(f"window_ms {window_ms} is longer than n_fft ({n_fft} samples)")
+        self.n_fft = int(n_fft)
+        self.min_hz = 2.0 * sample_rate / (self.pre + self.post)
+        """Lowest frequency (Hz) with two periods in the window; below it the window's
+        spectrum is the taper's, not the sound's (the pipeline uses the frame there)."""
+        self.taper = sp_signal.windows.tukey(self.pre + self.post, 0.3)
+        self._sos = sp_signal.butter(2, highpass_hz, btype="high", fs=sample_rate, output="sos")
+        self._keep = self.pre + self.post + self.block  # raw samples kept before the newest
+        self.reset()
+
+    def reset(self) -> None:
+        """Back to sample 0, no history."""
+        self._zi = np.zeros((self._sos.shape[0], 2, 2))  # (sections, ears, 2)
+        self.sample = 0  # samples pushed so far
+        self._partial = np.zeros(0)  # high-passed energy of the samples of an unfinished block
+        self._energy = np.full(self.far, np.inf)  # the last ``far`` block energies (inf: before the start)
+        self._above = False  # whether the last block was above its threshold
+        self._blocks = 0  # whole blocks seen
+        self._last_onset = -(10**9)  # block index of the last onset
+        self._audio = np.zeros((2, 0))  # the newest raw samples
+        self._audio_start = 0  # sample index of self._audio[:, 0]
+        self.pending: list[tuple[int, float]] = []  # (onset sample, block energy), windows not yet taken
+
+    def push(self, block: np.ndarray) -> None:
+        """Append a (2, n) block of ear samples (the pipeline's, already checked)."""
+        x = np.asarray(block, dtype=np.float64)
+        n = x.shape[1]
+        if n == 0:
+            return
+        y, self._zi = sp_signal.sosfilt(self._sos, x, axis=-1, zi=self._zi)
+        e = np.concatenate([self._partial, (y**2).sum(axis=0)])
+        whole = e.size // self.block
+        first = self.sample - self._partial.size  # sample index of e[0]
+        self._partial = e[whole * self.block:]
+        blocks = e[: whole * self.block].reshape(whole, self.block).sum(axis=1)
+        if whole:
+            energy = np.concatenate([self._energy, blocks])
+            # Block j's baseline: the median of blocks j - far .. j - near (inf before the start).
+            windows = np.lib.stride_tricks.sliding_window_view(energy, self.far - self.near + 1)[:whole]
+            above = blocks > self.ratio * np.median(windows, axis=1)
+            rising = above & ~np.concatenate([[self._above], above[:-1]])
+            for j in np.flatnonzero(rising):
+                b = self._blocks + int(j)
+                if b - self._last_onset > self.refractory:
+                    self.pending.append((first + int(j) * self.block, float(blocks[j])))
+                    self._last_onset = b
+            self._above = bool(above[-1])
+            self._energy = energy[-self.far:]
+            self._blocks += whole
+        audio = np.concatenate([self._audio, x], axis=1)
+        self.sample += n
+        oldest = min([s - self.pre for s, _ in self.pending] + [self.sample - self._keep])
+        cut = max(0, oldest - self._audio_start)
+        self._audio = audio[:, cut:]
+        self._audio_start += cut
+
+    def take(self, end_sample: int) -> np.ndarray | None:
+        """The spectrum (2, n_fft // 2 + 1) of the strongest onset whose window ends by
+        ``end_sample``, or None; every onset up to there is consumed."""
+        ready = [(s, e) for s, e in self.pending if s + self.post <= end_sample]
+        if not ready:
+            return None
+        self.pending = [(s, e) for s, e in self.pending if s + self.post > end_sample]
+        s, _ = max(ready, key=lambda item: item[1])
+        a = s - self.pre - self._audio_start
+        seg = np.zeros((2, self.pre + self.post))
+        lo = max(a, 0)
+        part = self._audio[:, lo : a + self.pre + self.post]
+        seg[:, lo - a : lo - a + part.shape[1]] = part
+        return np.fft.rfft(seg * self.taper, n=self.n_fft, axis=-1)
+
+
+__all__ = ["FirstWavefront"]
