@@ -24,8 +24,10 @@ from policies import POLICIES, make_policy
 EPISODES = 20
 BLIND_EPISODES = 12  # enough to show that the distractors bite
 LOCALIZATION = (
-    "auditory pipeline: in the car cabin's early reflections the SSDENet estimates of the narrow-band reverse alarm "
-    "and of the 35 ms ratchet clicks are not reliable enough for a front/right decision (issue 5 report)"
+    "auditory pipeline: with the first-wavefront precedence stage the fast models reach about 0.6-0.7 success "
+    "over 30 episodes (ReverseAlarm, ParkingBrake), not 0.9 with no false release: a class's summed evidence still "
+    "takes in the onsets of other sources in its bins (the radio, the key turn) and the relay's clicks are the "
+    "ratchet's class (issue 5 report)"
 )
 
 
