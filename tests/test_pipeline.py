@@ -15,6 +15,7 @@ from acoustic_sim.auditory.percept import Percept
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import frame_end_sample, rotation_zyx, sph_to_vec
+from detectors import AlwaysDetects
 
 
 @pytest.fixture(scope="module")
@@ -153,17 +154,6 @@ def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
     assert "| signal |" in (out / "REPORT.md").read_text()
 
 
-class _AlwaysDetects:
-    """A detector that declares every class in every frame: isolates the direction stage."""
-
-    def __init__(self, real):
-        self.classes = real.classes
-        self.characteristic_bins = {}
-
-    def predict(self, patch):
-        return np.ones((2, len(self.classes)), np.float32)
-
-
 def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
     """A 0.05 s noise burst from the right, then silence: with the default window the
     direction stays on the burst for direction_frames frames after it; with one frame it is
@@ -177,7 +167,7 @@ def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
     audio = Microphone(rng=rng)(r.render(len(burst) / 44100))
     out = {}
     for frames in (1, 12):
-        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=AlwaysDetects(pipe.melcnn),
                              direction_frames=frames, precedence=None)
         out[frames] = p.process(audio)
     has = {f: np.array([bool(q.directions) for q in ps]) for f, ps in out.items()}
@@ -203,7 +193,7 @@ def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
     audio = Microphone(rng=rng)(r.render(len(sig) / 44100))
     counts = {}
     for ratio in (None, 2.0):
-        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=_AlwaysDetects(pipe.melcnn),
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=AlwaysDetects(pipe.melcnn),
                              direction_frames=1, precedence=None if ratio is None else "ratio", onset_ratio=ratio or 2.0)
         out = p.process(audio)
         onset = int(np.ceil(22050 / 705.6))  # the first frame that reaches the noise

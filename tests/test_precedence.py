@@ -12,6 +12,7 @@ from acoustic_sim.auditory.precedence import FirstWavefront
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import rotation_zyx
 from acoustic_sim.world.events import ratchet_clicks
+from detectors import AlwaysDetects
 
 
 def _bursts(starts, n=44100, seed=0):
@@ -75,17 +76,6 @@ def test_bad_parameters_are_errors():
             FirstWavefront(**kwargs)
 
 
-class _HearsEverything:
-    """A detector that declares every class in every frame, all bins characteristic."""
-
-    def __init__(self, real):
-        self.classes = real.classes
-        self.characteristic_bins = {}
-
-    def predict(self, patch):
-        return np.ones((2, len(self.classes)), np.float32)
-
-
 @pytest.fixture(scope="module")
 def fast_pipe(kemar):
     return AuditoryPipeline.load(kemar, "fast", progress=False)
@@ -116,7 +106,7 @@ def test_first_wavefront_puts_cabin_clicks_on_their_side(kemar, fast_pipe, offse
     for seed in range(6):
         audio, start = _cabin_click(kemar, offset, seed)
         p = AuditoryPipeline(hrtf=kemar, grid=fast_pipe.grid, ssdenet=fast_pipe.ssdenet,
-                             melcnn=_HearsEverything(fast_pipe.melcnn))
+                             melcnn=AlwaysDetects(fast_pipe.melcnn))
         percepts = p.process(audio)
         frame = int(np.searchsorted([q.time_s for q in percepts], start / 44100)) + 4  # 4 frames after the click
         est = percepts[frame].directions[p.classes[0]]

@@ -178,7 +178,7 @@ class AuditoryPipeline:
         self.onset_ratio = float(onset_ratio)
         self.wavefront = FirstWavefront() if precedence == "wavefront" else None
         if self.wavefront is not None:
-            self._short_ok = bin_frequencies() >= self.wavefront.min_hz
+            self._short_ok = bin_frequencies()[ssdenet.bins] >= self.wavefront.min_hz  # (n_bank,)
         self._last_power: np.ndarray | None = None  # (n_bank,) both ears, the previous frame
 
     @classmethod
@@ -237,22 +237,26 @@ class AuditoryPipeline:
     def _frame(self, k: int, t: float, x: np.ndarray) -> Percept:
         self.mel.push(x)
         self.volumes.append(ear_volume(x))
-        valid = valid_bins(x, self.noise_power, self.factor)[self.ssdenet.bins]
-        cues = x  # the spectra the interaural features come from
+        bins = self.ssdenet.bins
         if self.precedence == "wavefront":
             onset = self.wavefront.take(int(frame_end_sample(k)))
-            if onset is None:
-                valid[:] = False
+            if onset is None:  # no onset, no direction evidence: the validity test is not needed
+                valid = np.zeros(bins.size, bool)
+                cues = x[:, bins]
             else:
+                valid = valid_bins(x, self.noise_power, self.factor)[bins]
                 # The window spans too few periods of the lowest bins to carry their
                 # phase: there the frame's own spectra give the features.
-                cues = np.where(self._short_ok[None, :], onset, x)
-        elif self.precedence == "ratio":
-            power = (x.real**2 + x.imag**2)[:, self.ssdenet.bins].sum(axis=0)
-            last = self._last_power
-            self._last_power = power
-            valid &= power > self.onset_ratio * last if last is not None else True
-        sel = cues[:, self.ssdenet.bins[valid]]
+                cues = np.where(self._short_ok[None, :], onset[:, bins], x[:, bins])
+        else:
+            valid = valid_bins(x, self.noise_power, self.factor)[bins]
+            cues = x[:, bins]
+            if self.precedence == "ratio":
+                power = (cues.real**2 + cues.imag**2).sum(axis=0)
+                last = self._last_power
+                self._last_power = power
+                valid &= power > self.onset_ratio * last if last is not None else True
+        sel = cues[:, valid]
         self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None, np.zeros_like(valid)])
         patch = self.mel.patch()
         volume = np.mean(np.asarray(self.volumes), axis=0)
