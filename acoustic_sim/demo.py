@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, rotation_zyx
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -57,11 +57,14 @@ class Trace:
         (6,) class probabilities of the observation.
     direction : list of numpy.ndarray
         (6, 3) estimated direction per class (head frame; zeros: no estimate).
+    neck : list of numpy.ndarray
+        (2,) the neck's yaw and pitch (rad, proprioception) per step: the head frame's turn
+        on the body. Empty (a trace made by hand): the head looks straight ahead.
     confidence : list of numpy.ndarray
         (6,) confidence of each estimate.
     true_az : list of dict
-        Per step, the true azimuth (deg) of each sound playing, by source name (ground truth
-        from ``info``, used only to tell the reader what was really there).
+        Per step, the true azimuth (deg, car frame) of each sound playing, by source name
+        (ground truth from ``info``, used only to tell the reader what was really there).
     labels : dict
         Source name -> sound class of every source that played.
     audio : list of numpy.ndarray
@@ -75,6 +78,7 @@ class Trace:
     t: list = dataclasses.field(default_factory=list)
     prob: list = dataclasses.field(default_factory=list)
     direction: list = dataclasses.field(default_factory=list)
+    neck: list = dataclasses.field(default_factory=list)
     confidence: list = dataclasses.field(default_factory=list)
     true_az: list = dataclasses.field(default_factory=list)
     labels: dict = dataclasses.field(default_factory=dict)
@@ -89,10 +93,12 @@ class Trace:
         self.t.append(float(info["time_s"]) - self.start_s)
         self.prob.append(np.array(obs["class_prob"], dtype=np.float64))
         self.direction.append(np.array(obs["class_dir"], dtype=np.float64))
+        neck = np.array(obs["joint_pos"][:2], dtype=np.float64)
+        self.neck.append(neck)
         self.confidence.append(np.array(obs["class_conf"], dtype=np.float64))
         az = {}
         for snd in info["sounding"]:
-            az[snd["source"]] = float(snd["azimuth_deg"])
+            az[snd["source"]] = car_azimuth_deg(snd["direction"], neck)
             self.labels[snd["source"]] = snd["label"]
         self.true_az.append(az)
         if step > 0:
@@ -102,8 +108,17 @@ class Trace:
 
 
 def azimuth_deg(v) -> float:
-    """Azimuth (deg, -180..180, + left) of a head-frame vector."""
+    """Azimuth (deg, -180..180, + left) of a vector."""
     return math.degrees(math.atan2(float(v[1]), float(v[0])))
+
+
+def car_azimuth_deg(v_head, neck=(0.0, 0.0), *, mirror: bool = False) -> float:
+    """Azimuth (deg, + left) in the car's frame of a head-frame vector, the neck turned by
+    ``neck`` = (yaw, pitch) rad; ``mirror``: of its front-back mirror image through the
+    head's interaural axis (what the ears cannot tell it from)."""
+    x, y, z = (float(c) for c in v_head)
+    v = np.array([-x, y, z]) if mirror else np.array([x, y, z])
+    return azimuth_deg(rotation_zyx(math.degrees(float(neck[0])), math.degrees(float(neck[1]))) @ v)
 
 
 def side_words(az: float) -> str:
@@ -121,7 +136,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, success_window_s: float, seed: int,
-            profile: str) -> tuple[str, dict]:
+            profile: str, mirror: bool = False) -> tuple[str, dict]:
     """The episode in words, in time order, and the moments it names (for ``demo.json``).
 
     What the robot heard comes from the observations (the reverse alarm's probability and
@@ -136,7 +151,10 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     threshold : float
         Probability from which the alarm counts as heard (the scripted policy's), 0..1.
     front_deg : float
-        Half-width (deg of azimuth) of the region the policy accepts as "in front".
+        Half-width (deg of azimuth, car frame) of the region the policy accepts as "in front".
+    mirror : bool
+        The policy also accepts a direction whose front-back mirror image (through the
+        head's interaural axis) is in front (:class:`policies.scripted.ScriptedReverseAlarm`).
     success_window_s : float
         Longest alarm-to-release time of a success (the task's), s.
     seed : int
@@ -159,7 +177,10 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     d = np.array([x[k] for x in trace.direction])
     has = np.linalg.norm(d, axis=1) > 0.5
     heard = (p >= threshold) & has
-    az = np.array([azimuth_deg(v) if h else np.nan for v, h in zip(d, has)])
+    neck = trace.neck if trace.neck else [np.zeros(2)] * len(d)
+    az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
+    maz = np.array([car_azimuth_deg(v, n, mirror=True) if h else np.nan for v, n, h in zip(d, neck, has)])
+    accepted = has & ((np.abs(az) <= front_deg) | (mirror & (np.abs(maz) <= front_deg)))
     onset = record["target_onset_s"]
     onset = None if onset is None else onset - trace.start_s
     release = record.get("release_s")
@@ -188,22 +209,26 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         if after.size:
             j = int(after[0])
             a = float(az[j])
-            region = "inside" if abs(a) <= front_deg else "outside"
+            if abs(a) <= front_deg or not mirror:
+                region = f"{'inside' if abs(a) <= front_deg else 'outside'} the front region, +-{front_deg:.0f} deg"
+            else:
+                region = (f"its front-back mirror image, {maz[j]:+.0f} deg, is "
+                          f"{'inside' if accepted[j] else 'outside'} the front region, +-{front_deg:.0f} deg")
             timeline.append((t[j], 3, (f"recognized as a reverse alarm (p = {p[j]:.2f}), {t[j] - onset:.2f} s after it "
-                                      f"started, from {a:+.0f} deg ({side_words(a)}; {region} the front region, "
-                                      f"+-{front_deg:.0f} deg)")))
+                                      f"started, from {a:+.0f} deg ({side_words(a)}; {region})")))
             moments.update(recognized_s=float(t[j]), recognized_azimuth_deg=a)
-            front = after[np.abs(az[after]) <= front_deg]
+            front = after[accepted[after]]
             if front.size and front[0] != j:
                 f = int(front[0])
-                timeline.append((t[f], 4, f"first heard from the front: {az[f]:+.0f} deg"))
+                via = f" (its mirror image: {maz[f]:+.0f} deg)" if abs(az[f]) > front_deg else ""
+                timeline.append((t[f], 4, f"first heard from the front: {az[f]:+.0f} deg{via}"))
             if front.size:
                 moments["front_s"] = float(t[int(front[0])])
             upto = after[t[after] <= (release if release is not None else np.inf)]
-            n_front = int(np.sum(np.abs(az[upto]) <= front_deg))
+            n_front = int(np.sum(accepted[upto]))
             tail.append(f"while the alarm sounded{' and the hand held on' if release is not None else ''}, "
                         f"{upto.size} frames heard it with a direction: median {float(np.median(az[upto])):+.0f} deg, "
-                        f"{n_front} of them from the front")
+                        f"{n_front} of them from the front{' or its mirror image' if mirror else ''}")
         else:
             best = float(np.max(p[t >= onset])) if np.any(t >= onset) else float("nan")
             tail.append(f"the alarm was never recognized with a direction (highest probability {best:.2f}, "
@@ -242,7 +267,8 @@ def _truth(trace: Trace, a: int, b: int) -> str:
     return f" (it was {name}, truly {m:+.0f} deg, {side_words(m)})"
 
 
-def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_deg: float, title: str) -> None:
+def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_deg: float, title: str,
+           mirror: bool = False) -> None:
     """``demo.png``: mel spectrograms, the class probabilities and the alarm's estimated azimuth.
 
     Parameters
@@ -256,6 +282,9 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
         The policy's probability threshold (a dotted line; estimates above it in red).
     front_deg : float
         Half-width of the accepted front region (shaded), deg.
+    mirror : bool
+        Also shade the front region's front-back mirror image (through the head's
+        interaural axis, at the neck's median yaw), which the policy accepts too.
     title : str
     """
     import matplotlib
@@ -299,9 +328,15 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
     axes[2].legend(loc="upper left", fontsize=7, ncol=3)
     axes[3].axhspan(-front_deg, front_deg, color="tab:green", alpha=0.08, lw=0,
                     label=f"front region (+-{front_deg:g} deg)")
+    neck = trace.neck if trace.neck else [np.zeros(2)] * len(trace.direction)
+    if mirror:
+        yaw = math.degrees(float(np.median([n[0] for n in neck]))) if neck else 0.0
+        centre = (180.0 + 2.0 * yaw + 180.0) % 360.0 - 180.0
+        axes[3].axhspan(centre - front_deg, centre + front_deg, color="tab:olive", alpha=0.08, lw=0,
+                        label="its front-back mirror for the ears")
     d = np.array([x[k] for x in trace.direction])
     has = np.linalg.norm(d, axis=1) > 0.5
-    az = np.array([azimuth_deg(v) for v in d])
+    az = np.array([car_azimuth_deg(v, n) for v, n in zip(d, neck)])
     on = has & (p >= threshold)
     axes[3].scatter(t[has & ~on], az[has & ~on], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
     axes[3].scatter(t[on], az[on], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
@@ -310,7 +345,7 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
         axes[3].plot(t, ys, **style)
     axes[3].set_ylim(-185, 185)
     axes[3].set_yticks([-180, -90, 0, 90, 180], ["-180\nbehind", "-90\nright", "0\nfront", "90\nleft", "180\nbehind"])
-    axes[3].set_ylabel("reverse alarm\nazimuth (deg)")
+    axes[3].set_ylabel("reverse alarm\nazimuth (deg, car)")
     axes[3].set_xlabel("time since the episode's start (s)")
     axes[3].legend(loc="upper left", fontsize=7, ncol=2)
     marks = [("alarm_start_s", "alarm starts", "tab:red"), ("recognized_s", "recognized", "tab:orange"),
@@ -409,11 +444,13 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     finally:
         recorder.close()
     threshold = float(policy.threshold)
+    mirror = bool(getattr(policy, "mirror", False))
     text, moments = narrate(trace, record, threshold=threshold, front_deg=float(policy.front_deg),
-                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile)
+                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile, mirror=mirror)
     title = (f"ReverseAlarm, scripted policy, seed {seed}, {profile} models: "
              f"{record['outcome'].replace('_', ' ')}")
-    figure(trace, moments, out / "demo.png", threshold=threshold, front_deg=float(policy.front_deg), title=title)
+    figure(trace, moments, out / "demo.png", threshold=threshold, front_deg=float(policy.front_deg), title=title,
+           mirror=mirror)
     import soundfile as sf
 
     audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)

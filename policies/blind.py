@@ -16,6 +16,8 @@ from policies.scripted import ScriptedParkingBrake, ScriptedReverseAlarm, TurnPo
 class BlindReverseAlarm(ScriptedReverseAlarm):
     """Push the gearshift; let go when a reverse alarm is heard, wherever it is."""
 
+    head_yaw_deg = 0.0  # no direction test, so no listening pose
+
     def should_release(self, obs, info) -> bool:
         on, _ = heard(obs, self.label, self.threshold, self.min_conf)
         return self.evidence.push(on, False)

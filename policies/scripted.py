@@ -104,12 +104,15 @@ class LeverPolicy(TaskPolicy):
         The hand on the lever.
     delay_s, rate_deg_s, max_deg : float
         The taught motion: still for ``delay_s``, then ``rate_deg_s`` up to ``max_deg``.
+    head_yaw_deg : float
+        The neck's yaw (deg, + left) held during the episode: the listening pose.
     """
 
     side = "left"
     delay_s = 0.2
     rate_deg_s = 8.0
     max_deg = 30.0
+    head_yaw_deg = 0.0
 
     def reset(self, obs, info) -> None:
         super().reset(obs, info)
@@ -133,6 +136,7 @@ class LeverPolicy(TaskPolicy):
                 self.motion_s += CONTROL_DT
             self._arm = lever_arm_angles(self.side, self.lever_target_deg())
         values = self.layout.arm(self.side, self._arm)
+        values["neck_yaw"] = math.radians(self.head_yaw_deg)
         values[f"grasp_{self.side}"] = -1.0 if self.released else 1.0
         self.steps += 1
         return self.layout.action(values)
@@ -143,7 +147,21 @@ class ScriptedReverseAlarm(LeverPolicy):
 
     Parameters (class level): ``threshold`` (class probability), ``min_conf`` (direction
     confidence), ``front_deg`` (half-width of the front sector, deg of azimuth), ``window``
-    and ``votes`` (see :class:`Votes`).
+    and ``votes`` (see :class:`Votes`), ``head_yaw_deg`` (the neck's yaw while listening,
+    deg, + left) and ``mirror`` (accept the front-back mirror image of the front sector).
+
+    Front and back: the interaural features cannot tell a source from its mirror image
+    through the interaural axis (the cone of confusion; with KEMAR's mirror-symmetric ears,
+    ILD and IPD are exactly 0 at every frequency on the whole median plane, so the dashboard
+    alarm and a beeper behind the car give the same features). Looking straight ahead, the
+    alarm's mirror image is behind the car, where half of the other vehicles' beepers are.
+    The robot therefore listens with its head turned ``head_yaw_deg`` (45 deg to the
+    right): the alarm is then 45 deg to the left of the head, its mirror image 90 deg to the
+    left of the car (through the door), and the policy accepts either (``mirror``), since
+    the ears cannot choose between them. Measured over 90 episodes (seeds 100-189, paper
+    models, kemar): head straight, front sector 45 deg: success 0.57, false releases 0.12;
+    head straight, mirror accepted, 15 deg: 0.73, 0.02; head turned 45 deg right, mirror
+    accepted, 20 deg: 0.82, 0.03.
     """
 
     side = "left"
@@ -152,19 +170,26 @@ class ScriptedReverseAlarm(LeverPolicy):
     label = "reverse_alarm"
     threshold = 0.5
     min_conf = 0.0
-    front_deg = 45.0
+    front_deg = 20.0
     window = 8
     votes = 3
+    head_yaw_deg = -45.0
+    mirror = True
 
     def reset(self, obs, info) -> None:
         super().reset(obs, info)
         self.evidence = Votes(self.window, self.votes)
+        self._obs = obs
 
     def accept(self, direction: np.ndarray) -> bool:
-        """The alarm's region: in front (azimuth within ``front_deg``)."""
-        return abs(azimuth_deg(direction)) <= self.front_deg
+        """The alarm's region: in front of the car (azimuth within ``front_deg``), or the
+        front-back mirror image of that with respect to the head (``mirror``)."""
+        v = np.asarray(direction, float)
+        candidates = [v, np.array([-v[0], v[1], v[2]])] if self.mirror else [v]
+        return any(abs(math.degrees(fixed_azimuth(self._obs, c))) <= self.front_deg for c in candidates)
 
     def should_release(self, obs, info) -> bool:
+        self._obs = obs
         on, d = heard(obs, self.label, self.threshold, self.min_conf)
         pro = on and d is not None and self.accept(d)
         con = on and d is not None and not self.accept(d)
@@ -195,6 +220,8 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     rate_deg_s = 12.0
     max_deg = 45.0
     label = "ratchet"
+    head_yaw_deg = 0.0  # the ratchet is far off the median plane: no front-back question
+    mirror = False
     right_deg = (35.0, 165.0)
     window = 6
     votes = 2
@@ -219,11 +246,13 @@ def fixed_azimuth(obs, v_head) -> float:
 
     The head turns on the wheelchair by the neck's yaw then pitch (proprioception), the
     wheelchair by its odometry heading: ``v = Rz(heading) Rz(neck_yaw) Ry(neck_pitch) v_head``.
+    Without a wheelchair (no ``base`` in the observation: the car seat) the heading is 0.
     """
     yaw, pitch = float(obs["joint_pos"][0]), float(obs["joint_pos"][1])
     x, y, z = (float(c) for c in v_head)
     x, z = x * math.cos(pitch) + z * math.sin(pitch), -x * math.sin(pitch) + z * math.cos(pitch)
-    return _wrap(math.atan2(y, x) + yaw + float(obs["base"][0]))
+    heading = float(obs["base"][0]) if "base" in obs else 0.0
+    return _wrap(math.atan2(y, x) + yaw + heading)
 
 
 class TurnPolicy(TaskPolicy):

@@ -143,3 +143,19 @@ def test_demo_errors(tmp_path):
     assert exit_info.value.code == 2
     assert main(["demo", "--seed", "-2", "--out", str(tmp_path / "d")]) == 2
     assert not (tmp_path / "d").exists()  # refused before anything was written
+
+
+def test_narration_in_the_car_frame_with_the_mirror_accepted():
+    # The head turned 45 deg right; the alarm heard at +80 deg in the car's frame (its
+    # front-back mirror through the head's interaural axis is +10 deg: accepted with mirror).
+    tr = _trace(70, alarm_from=125.0)  # head frame: +125 deg = +80 deg in the car
+    tr.neck = [np.array([np.radians(-45.0), 0.0])] * len(tr.t)
+    text, m = narrate(tr, _record("success", 70, 38, 60), threshold=0.5, front_deg=20.0, success_window_s=1.0, seed=3,
+                      profile="fast", mirror=True)
+    assert "from +80 deg (on the left; its front-back mirror image, +10 deg, is inside the front region, +-20 deg)" in text
+    assert "21 frames heard it with a direction: median +80 deg, 21 of them from the front or its mirror image" in text
+    assert m["front_s"] == m["recognized_s"]
+    # Without the mirror, the same estimate is outside the front region.
+    text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, front_deg=20.0, success_window_s=1.0,
+                      seed=3, profile="fast")
+    assert "from +80 deg (on the left; outside the front region, +-20 deg)" in text and m["front_s"] is None
