@@ -14,7 +14,7 @@ from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.percept import Percept
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import frame_end_sample, rotation_zyx, sph_to_vec
+from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, rotation_zyx, sph_to_vec
 from detectors import AlwaysDetects
 
 
@@ -194,7 +194,8 @@ def test_precedence_gate_keeps_only_frames_where_power_rises(pipe, kemar):
     counts = {}
     for ratio in (None, 2.0):
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=AlwaysDetects(pipe.melcnn),
-                             direction_frames=1, precedence=None if ratio is None else "ratio", onset_ratio=ratio or 2.0)
+                             direction_frames=1, precedence=None if ratio is None else "ratio", onset_ratio=ratio or 2.0,
+                             coverage=0.0)  # the gate alone: its chance frames hold a few bins
         out = p.process(audio)
         onset = int(np.ceil(22050 / 705.6))  # the first frame that reaches the noise
         est = out[onset + 2].directions.get(pipe.classes[0])
@@ -243,6 +244,7 @@ def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, k
         for c in (0, 2):
             own = np.isin(bank.bins, cnn.characteristic_bins[p.classes[c]])
             use = valid[k - 4 : k + 1] & own  # the last 5 frames
+            use &= (use.sum(axis=1) >= p.coverage * own.sum())[:, None]  # frames that cover the class's bins
             if not use.any():
                 continue
             want = (maps[k - 4 : k + 1] * use[..., None]).sum(axis=(0, 1))
@@ -252,3 +254,30 @@ def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, k
             checked += 1
         assert p.classes[1] not in percepts[k].directions  # not detected: no estimate
     assert checked >= 20
+
+
+def test_a_frame_counts_for_a_class_only_when_it_covers_its_bins(pipe, kemar):
+    """A sine in one of a class's bins (another sound's narrow onset) gives the class no
+    direction when coverage asks for half of its bins; with coverage 0 it does."""
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    bank = pipe.ssdenet
+    cnn = _DetectsSome(pipe.melcnn, bank.bins)
+    c = 0
+    own = bank.bins[np.isin(bank.bins, cnn.characteristic_bins[pipe.classes[c]])]
+    assert own.size >= 4
+    t = np.arange(int(0.5 * SAMPLE_RATE)) / SAMPLE_RATE
+    f = float(bin_frequencies()[own[own.size // 2]])
+    x = 0.05 * np.sin(2 * np.pi * f * t)
+    audio = np.stack([x, 0.8 * x])
+    got = {}
+    for coverage in (0.0, 0.5):
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, precedence=None, coverage=coverage)
+        # (the first frames hold the sine's switch-on click, broadband; then the evidence
+        # window of 12 frames passes)
+        got[coverage] = [q.directions.get(pipe.classes[c]) for q in p.process(audio)[16:]]
+    assert all(d is not None and d.n_bins >= 1 for d in got[0.0])
+    assert all(d is None for d in got[0.5])
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ConfigError, match="coverage"):
+            AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, coverage=bad)

@@ -37,6 +37,18 @@ frame (session 3: a ratchet click at -108 deg, 0.65 m, on the right in 5/8 inste
 the first wavefront: 98 % of 46 clicks, see :mod:`~acoustic_sim.auditory.precedence`).
 ``None`` is the paper's rule alone, which :meth:`localize` (the paper's experiments) keeps.
 
+Attribution (``coverage``): a class's direction sums the recent frames' evidence in the
+class's bins, whatever sound put it there. In the cabin the radio's speech starts while the
+relay clicks (the relay's clicks are ratchet-like, so the ratchet class is detected), and
+the speech's onset lights up two of the ratchet's twelve bins: summed into the ratchet's
+evidence, it placed the ratchet at -87 deg. A frame therefore counts for a class only when
+its valid bins cover at least ``coverage`` of the class's bank bins (default 0.5): a sound
+of the class excites its band, another sound's onset only some of it. Measured with the
+scripted policies over 90 episodes (seeds 100-189, paper models, kemar), coverage 0 -> 0.5:
+ParkingBrake success 0.90 -> 0.92, false releases 0.06 -> 0.02; ReverseAlarm 0.82 -> 0.81,
+false releases 0.03 -> 0.03 (fast models, 30 episodes: ParkingBrake 0.67 both, ReverseAlarm
+0.73 both). The paper's own rule (:meth:`localize`) has no such test.
+
 The noise that the validity threshold refers to is the robot's own driving noise (the
 paper: 10 times its spectrum per bin). Without a robot (a WAV file), the default is the
 microphone's self-noise floor; a task sets the ego-noise spectrum with
@@ -73,6 +85,10 @@ DIRECTION_FRAMES = 12
 
 ONSET_RATIO = 2.0
 """The ``"ratio"`` precedence gate: a bin's power must have doubled (+3 dB) since the last frame."""
+
+COVERAGE = 0.5
+"""A frame's evidence counts for a class when it is valid in at least this fraction of the
+class's bank bins (module docstring)."""
 
 PRECEDENCE = ("wavefront", "ratio", None)
 """Precedence modes of the streaming pipeline (module docstring); the first is the default."""
@@ -126,6 +142,9 @@ class AuditoryPipeline:
         None (the paper's rule alone); see the module docstring.
     onset_ratio : float
         The ``"ratio"`` mode's factor (default :data:`ONSET_RATIO`), >= 1.
+    coverage : float
+        A frame counts for a class's direction only when its valid bins cover at least this
+        fraction of the class's bank bins (default :data:`COVERAGE`; 0: every frame), 0..1.
 
     Use :meth:`load` to get one with trained (cached) models.
     """
@@ -133,7 +152,7 @@ class AuditoryPipeline:
     def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
-                 onset_ratio: float = ONSET_RATIO) -> None:
+                 onset_ratio: float = ONSET_RATIO, coverage: float = COVERAGE) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -148,6 +167,8 @@ class AuditoryPipeline:
             raise ConfigError(f"precedence must be one of {PRECEDENCE}, got {precedence!r}")
         if not (onset_ratio is not None and np.isfinite(onset_ratio) and onset_ratio >= 1.0):
             raise ConfigError(f"onset_ratio must be >= 1, got {onset_ratio}")
+        if not (coverage is not None and np.isfinite(coverage) and 0.0 <= coverage <= 1.0):
+            raise ConfigError(f"coverage must be in [0, 1], got {coverage}")
         if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
             raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
         self.hrtf = hrtf
@@ -164,6 +185,8 @@ class AuditoryPipeline:
         for c, name in enumerate(self.classes):
             cb = melcnn.characteristic_bins.get(name)
             self._class_masks[c] = np.isin(bins, cb) if cb is not None and np.size(cb) else True
+        self._class_sizes = self._class_masks.sum(axis=1)  # (C,)
+        self.coverage = float(coverage)
         self._music: Music | None = None
         self._gcc: GccPhat | None = None
         self.frontend = EarFrontEnd()
@@ -184,7 +207,7 @@ class AuditoryPipeline:
     @classmethod
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
-             precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO,
+             precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = COVERAGE,
              progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
@@ -202,7 +225,8 @@ class AuditoryPipeline:
         bank = SSDENetBank.load_or_train(ears, grid, profile, progress=progress)
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
-                   direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio)
+                   direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
+                   coverage=coverage)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -297,6 +321,10 @@ class AuditoryPipeline:
                 maps[pos] = self.ssdenet.existence(features[rows], subset=pos, within=within)
                 have |= need
             sel = masks[:, used]  # (c, n_used)
+            if self.coverage > 0.0:
+                # A frame counts for a class only when its valid bins cover enough of the
+                # class's bins: another sound's onset lights up few of them.
+                sel = sel & (sel.sum(axis=1) >= self.coverage * self._class_sizes[class_indices])[:, None]
             total += sel.astype(np.float32) @ maps[used]
             counts += sel.sum(axis=1)
         return {
