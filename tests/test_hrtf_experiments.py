@@ -125,7 +125,7 @@ def test_ild_ipd_writes_every_key(ild_run, kemar):
     out, result = ild_run
     assert json.loads((out / "hrtf_ild_ipd.json").read_text()) == result
     assert set(result) == {"experiment", "hrtf", "ident", "grid", "directions", "frequencies", "ild", "ipd_rad",
-                           "ild_range_definition", "ild_range", "ild_range_ratio", "note", "figures"}
+                           "ild_range_definition", "ild_range", "ild_range_ratio", "note", "median_plane", "figures"}
     for name in ("hrtf_ild.png", "hrtf_ipd.png"):
         assert (out / name).read_bytes()[:8] == PNG_SIGNATURE
     d = len(DirectionGrid.paper(kemar))
@@ -178,3 +178,18 @@ def test_experiments_reject_a_bad_hrtf(tmp_path):
         hrtf_ild_ipd(tmp_path, hrtf=3)
     with pytest.raises(HRTFError):
         pinna(tmp_path, hrtf_with="no-such-hrtf")
+
+
+def test_median_plane_differences_zero_for_kemar_not_for_the_robots_ears(ild_run, kemar):
+    """KEMAR (one ear mirrored) has no interaural cue on the median plane; Musashi's ears (the
+    right pinna tilted) have one, which is what top-bottom discrimination there needs."""
+    from acoustic_sim.acoustics.hrtf import HRTF
+    from acoustic_sim.experiments.hrtf_figures import median_plane_differences
+
+    _, result = ild_run
+    mp = result["median_plane"]
+    assert mp["directions"] > 20 and mp["band_hz"] == [300.0, 12000.0]
+    assert mp["max_abs_ild_db"] < 1e-3 and mp["max_abs_ipd_rad"] < 1e-4 and "mirror-symmetric" in mp["consequence"]
+    m = HRTF.load("musashi")
+    mm = median_plane_differences(m)
+    assert mm["max_abs_ild_db"] > 3.0 and mm["max_abs_ipd_rad"] > 0.5 and "differ" in mm["consequence"]

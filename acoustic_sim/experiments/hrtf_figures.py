@@ -42,7 +42,7 @@ from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_FFT, bin_frequencies, frequency_to_bin
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError, HRTFError
-from acoustic_sim.frames import vec_to_sph
+from acoustic_sim.frames import sph_to_vec, vec_to_sph
 
 PAPER_FREQUENCIES_HZ = (301.5, 560.0, 990.5, 5706.3, 8548.7, 11994.0)
 """The paper's six ILD/IPD frequencies (Hz): bins 14, 26, 46, 265, 397 and 557 of the
@@ -331,12 +331,52 @@ def hrtf_ild_ipd(out_dir, hrtf="kemar") -> dict:
         },
         "note": ("the paper's numbers are for Musashi's ear unit on its own head, not for KEMAR: compare the "
                  "growth from the low to the high frequencies (ild_range_ratio), not the absolute values"),
+        "median_plane": median_plane_differences(h),
         "figures": ["hrtf_ild.png", "hrtf_ipd.png"],
     }
     _map_figure(grid, ild, exact, out / "hrtf_ild.png", "ILD (natural log)", "RdBu_r", symmetric=True)
     _map_figure(grid, ipd, exact, out / "hrtf_ipd.png", "IPD = arg(A_l / A_r) (rad)", "twilight", symmetric=False)
     _write_json(out / "hrtf_ild_ipd.json", result)
     return result
+
+
+MEDIAN_PLANE_BAND_HZ = (300.0, 12000.0)
+"""The band over which :func:`median_plane_differences` looks (the SSDENet bank's)."""
+
+
+def median_plane_differences(h: HRTF) -> dict:
+    """The largest interaural level and phase differences over the HRTF's measured
+    directions on the median plane.
+
+    On the median plane of a left-right mirror-symmetric head (KEMAR's "normal pinna" set is
+    one ear mirrored) both ears receive the same signal from every direction: ILD and IPD
+    are 0 at every frequency, so interaural features (SSDENet's, MUSIC's steering vectors)
+    hold nothing about elevation or front and back there, in the free field. Only unequal
+    ears (Musashi's) or the room's reflections can add it.
+
+    Returns
+    -------
+    dict
+        ``directions`` (measured directions on the median plane), ``band_hz``,
+        ``max_abs_ild_db``, ``max_abs_ipd_rad``, ``consequence`` (a sentence).
+    """
+    vectors = sph_to_vec(h.azimuth_deg, h.elevation_deg)
+    on = np.flatnonzero(np.abs(vectors[:, 1]) < 1e-6)
+    f = bin_frequencies(N_FFT)
+    bins = np.flatnonzero((f >= MEDIAN_PLANE_BAND_HZ[0]) & (f <= MEDIAN_PLANE_BAND_HZ[1]))
+    a = h.transfer_function(vectors[on], n_fft=N_FFT, bins=bins)  # (M, 2, B)
+    ratio = a[:, 0] / np.where(np.abs(a[:, 1]) > 0, a[:, 1], 1.0)
+    ild_db = float(np.max(np.abs(20.0 * np.log10(np.maximum(np.abs(ratio), 1e-12)))))
+    ipd = float(np.max(np.abs(np.angle(ratio))))
+    if ild_db < 0.01 and ipd < 1e-3:
+        consequence = ("Both ears get the same signal from every median-plane direction (a mirror-symmetric head), "
+                       "so the interaural features cannot tell top from bottom or front from back there: in the free "
+                       "field a top-bottom accuracy above chance can only come from the room's reflections.")
+    else:
+        consequence = ("The ears differ, so the interaural features carry some median-plane (top-bottom, "
+                       "front-back) information.")
+    return {"directions": int(on.size), "band_hz": list(MEDIAN_PLANE_BAND_HZ), "max_abs_ild_db": round(ild_db, 4),
+            "max_abs_ipd_rad": round(ipd, 4), "consequence": consequence}
 
 
 def _map_figure(grid: DirectionGrid, values: np.ndarray, freqs: np.ndarray, path: Path, label: str, cmap: str,

@@ -54,6 +54,7 @@ def tables(out) -> str:
         "| ours (max abs ILD) | " + " | ".join(f"{r['ours']:.2f}" for r in ild["ild_range"]) + " |",
         "| paper | " + " | ".join("-" if r["paper"] is None else f"{r['paper']:.2f}" for r in ild["ild_range"]) + " |",
         "",
+        *_median_plane_lines(ild),
         f"**Localization in simulation** (mean angular error in deg over {loc['directions']} directions, "
         f"{loc['hrtf']}, `{loc['profile']}` models):",
         "",
@@ -68,7 +69,8 @@ def tables(out) -> str:
     lines += [
         "",
         f"**Localization in the {room['room']} room** (white noise {room['level_db_spl'][0]:.0f}-"
-        f"{room['level_db_spl'][1]:.0f} dB SPL at {room['distance_m']} m; models from {room['trained_on']}):",
+        f"{room['level_db_spl'][1]:.0f} dB SPL at {room['distance_m']} m; models from {room['trained_on']}; "
+        f"{room.get('trials_per_angle', 1)} trial(s) per angle):",
         "",
         "| metric | " + " | ".join(LABELS.get(k, k) for k in keys) + " |",
         "|---|" + "---|" * len(keys),
@@ -127,6 +129,19 @@ def localization_figures(out) -> list[str]:
     fig.savefig(out / "localization_room.png", dpi=110)
     plt.close(fig)
     return ["localization_simulation.png", "localization_room.png"]
+
+
+def _median_plane_lines(ild: dict) -> list[str]:
+    """What the interaural features hold on the median plane (absent in older files)."""
+    mp = ild.get("median_plane")
+    if mp is None:
+        return []
+    return [
+        f"**Interaural differences on the median plane** ({ild['hrtf']}, {mp['directions']} directions, "
+        f"{mp['band_hz'][0]:.0f}-{mp['band_hz'][1]:.0f} Hz): max |ILD| {mp['max_abs_ild_db']:.3g} dB, max |IPD| "
+        f"{mp['max_abs_ipd_rad']:.3g} rad. {mp['consequence']}",
+        "",
+    ]
 
 
 def write_report(out) -> Path:
