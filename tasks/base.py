@@ -108,6 +108,9 @@ class HearingTaskEnv(gym.Env):
     default_max_episode_s = 10.0
     background_db_range = (40.0, 40.0)
     """Room background noise (dB SPL) drawn per episode."""
+    coverage = 0.0
+    """The auditory pipeline's attribution rule (``AuditoryPipeline(coverage=)``): 0, every
+    frame counts for every detected class."""
     warmup_s = 0.5
     """Seconds the ears listen before the episode starts (see :meth:`_warm_up`)."""
     spec_action_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
@@ -147,7 +150,7 @@ class HearingTaskEnv(gym.Env):
         self.image_size = (h, w)
         self._threads = TorchThreads(torch_threads)
         self.layout = action_layout(self.scene_name)
-        self.pipeline = make_pipeline(profile, hrtf)
+        self.pipeline = make_pipeline(profile, hrtf, self.coverage)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32)

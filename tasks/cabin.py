@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from acoustic_sim.acoustics import sounds
+from acoustic_sim.auditory.pipeline import COVERAGE
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scene
 from tasks.actions import ActionChannel
@@ -47,6 +48,13 @@ class CabinLeverTask(HearingTaskEnv):
     scene_name = "cabin"
     side = "left"
     background_db_range = (40.0, 55.0)
+    coverage = COVERAGE
+    """Attribution: in the cabin the radio, the key turn and the gearshift's clunk start while
+    the ratchet or the alarm class is heard; a frame counts for a class only when it covers
+    half of the class's bins (:mod:`acoustic_sim.auditory.pipeline`; ParkingBrake, paper
+    models, 90 episodes: success 0.90 -> 0.92, false releases 0.06 -> 0.02). The room task
+    keeps 0: speech frames often cover fewer than half of the voice's bins (CallResponse,
+    fast, 20 episodes: 1.0 at 0, 0.95 at 0.5)."""
     """Engine idling and road noise: the cabin's diffuse background, dB SPL per episode."""
     radio_position = (1.62, 0.78, 0.72)
     """Room-frame point (m) of the dashboard radio's loudspeaker (front, a little right)."""
