@@ -48,6 +48,7 @@ class CabinLeverTask(HearingTaskEnv):
     scene_name = "cabin"
     side = "left"
     background_db_range = (40.0, 55.0)
+    """Engine idling and road noise: the cabin's diffuse background, dB SPL per episode."""
     coverage = COVERAGE
     """Attribution: in the cabin the radio, the key turn and the gearshift's clunk start while
     the ratchet or the alarm class is heard; a frame counts for a class only when it covers
@@ -55,7 +56,6 @@ class CabinLeverTask(HearingTaskEnv):
     models, 90 episodes: success 0.90 -> 0.92, false releases 0.06 -> 0.02). The room task
     keeps 0: speech frames often cover fewer than half of the voice's bins (CallResponse,
     fast, 20 episodes: 1.0 at 0, 0.95 at 0.5)."""
-    """Engine idling and road noise: the cabin's diffuse background, dB SPL per episode."""
     radio_position = (1.62, 0.78, 0.72)
     """Room-frame point (m) of the dashboard radio's loudspeaker (front, a little right)."""
     radio_probability = 0.5

@@ -281,3 +281,20 @@ def test_a_frame_counts_for_a_class_only_when_it_covers_its_bins(pipe, kemar):
     for bad in (-0.1, 1.5, float("nan")):
         with pytest.raises(ConfigError, match="coverage"):
             AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, coverage=bad)
+
+
+def test_room_experiment_repeats_each_angle(kemar):
+    """``trials`` renders every angle that many times (new noise, level and background each);
+    per-angle errors are the mean over them, accuracies count every trial."""
+    from acoustic_sim.experiments import localization
+
+    ahead = {"ahead": lambda spectra, noise: np.array([1.0, 0.0, 0.0])}
+    r = localization.room(kemar, ahead, rng=np.random.default_rng(0), quick=True, trials=2, progress=False)
+    horizontal, median = localization.room_directions(kemar, quick=True)
+    assert r["trials_per_angle"] == 2
+    assert len(r["horizontal_per_angle"]["ahead"]) == len(horizontal)
+    assert len(r["median_per_angle"]["ahead"]) == len(median)
+    # Always "straight ahead" (never up): right exactly for the median-plane sources below it (4-digit rounding).
+    assert r["tb_accuracy"]["ahead"] == pytest.approx(float(np.mean(median[np.abs(median[:, 2]) > 1e-6, 2] <= 0)), abs=1e-4)
+    with pytest.raises(ConfigError, match="trials"):
+        localization.room(kemar, ahead, rng=np.random.default_rng(0), quick=True, trials=0, progress=False)

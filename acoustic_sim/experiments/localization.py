@@ -32,6 +32,7 @@ from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.frontend import analyze, window
 from acoustic_sim.directions import DirectionGrid, angular_error_deg, is_front, is_left, is_up
+from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import rotation_zyx, sph_to_vec, vec_to_sph
 
 Estimator = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -183,7 +184,7 @@ def room(world_hrtf, estimators: Mapping[str, Estimator], *, rng: np.random.Gene
     """
     trials = (1 if quick else ROOM_TRIALS) if trials is None else trials
     if not isinstance(trials, (int, np.integer)) or trials < 1:
-        raise ValueError(f"trials must be a positive integer, got {trials!r}")
+        raise ConfigError(f"trials must be a positive integer, got {trials!r}")
     horizontal, median = room_directions(world_hrtf, quick=quick)
     horizontal, median = np.repeat(horizontal, trials, axis=0), np.repeat(median, trials, axis=0)
     out = {k: {} for k in ("horizontal_mean_deg", "median_mean_deg", "horizontal_per_angle", "median_per_angle",
