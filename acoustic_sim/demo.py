@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, rotation_zyx
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -86,6 +86,10 @@ class Trace:
     events: list = dataclasses.field(default_factory=list)
     start_s: float = 0.0
 
+    def necks(self) -> list:
+        """:attr:`neck` per step, the head straight ahead where the trace has none."""
+        return self.neck if self.neck else [np.zeros(2)] * len(self.direction)
+
     def __call__(self, env, episode, step, obs, reward, terminated, truncated, info) -> None:
         env = env.unwrapped
         if step == 0:
@@ -116,9 +120,7 @@ def car_azimuth_deg(v_head, neck=(0.0, 0.0), *, mirror: bool = False) -> float:
     """Azimuth (deg, + left) in the car's frame of a head-frame vector, the neck turned by
     ``neck`` = (yaw, pitch) rad; ``mirror``: of its front-back mirror image through the
     head's interaural axis (what the ears cannot tell it from)."""
-    x, y, z = (float(c) for c in v_head)
-    v = np.array([-x, y, z]) if mirror else np.array([x, y, z])
-    return azimuth_deg(rotation_zyx(math.degrees(float(neck[0])), math.degrees(float(neck[1]))) @ v)
+    return math.degrees(head_to_body_azimuth(v_head, float(neck[0]), float(neck[1]), mirror=mirror))
 
 
 def side_words(az: float) -> str:
@@ -177,7 +179,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     d = np.array([x[k] for x in trace.direction])
     has = np.linalg.norm(d, axis=1) > 0.5
     heard = (p >= threshold) & has
-    neck = trace.neck if trace.neck else [np.zeros(2)] * len(d)
+    neck = trace.necks()
     az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
     maz = np.array([car_azimuth_deg(v, n, mirror=True) if h else np.nan for v, n, h in zip(d, neck, has)])
     accepted = has & ((np.abs(az) <= front_deg) | (mirror & (np.abs(maz) <= front_deg)))
@@ -328,7 +330,7 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
     axes[2].legend(loc="upper left", fontsize=7, ncol=3)
     axes[3].axhspan(-front_deg, front_deg, color="tab:green", alpha=0.08, lw=0,
                     label=f"front region (+-{front_deg:g} deg)")
-    neck = trace.neck if trace.neck else [np.zeros(2)] * len(trace.direction)
+    neck = trace.necks()
     if mirror:
         yaw = math.degrees(float(np.median([n[0] for n in neck]))) if neck else 0.0
         centre = (180.0 + 2.0 * yaw + 180.0) % 360.0 - 180.0

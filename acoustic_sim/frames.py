@@ -12,6 +12,8 @@ never drift.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
@@ -107,6 +109,24 @@ def rotation_zyx(yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float =
     ry = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
     rx = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
     return rz @ ry @ rx
+
+
+def head_to_body_azimuth(v_head, yaw: float = 0.0, pitch: float = 0.0, *, heading: float = 0.0,
+                         mirror: bool = False) -> float:
+    """Azimuth (rad, + left, -pi..pi) in the body's frame of a head-frame direction, the head
+    turned on the body by ``yaw`` then ``pitch`` (rad, the neck's proprioception):
+    ``v = Rz(yaw) Ry(pitch) v_head`` (:func:`rotation_zyx`'s convention); ``heading`` (rad)
+    turns the body itself (a wheelchair's odometry).
+
+    ``mirror``: of the direction's front-back mirror image through the head's interaural
+    axis, ``(-x, y, z)``, which interaural cues cannot tell from the direction itself.
+    Scalar math: the policies call it every control step.
+    """
+    x, y, z = (float(c) for c in v_head)
+    if mirror:
+        x = -x
+    x = x * math.cos(pitch) + z * math.sin(pitch)
+    return (math.atan2(y, x) + yaw + heading + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def world_to_head(points_world, head_position, head_rotation) -> np.ndarray:

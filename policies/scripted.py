@@ -30,6 +30,7 @@ from collections import deque
 
 import numpy as np
 
+from acoustic_sim.frames import head_to_body_azimuth
 from tasks.base import CLASSES, CONTROL_DT, lever_arm_angles
 
 
@@ -179,20 +180,19 @@ class ScriptedReverseAlarm(LeverPolicy):
     def reset(self, obs, info) -> None:
         super().reset(obs, info)
         self.evidence = Votes(self.window, self.votes)
-        self._obs = obs
 
-    def accept(self, direction: np.ndarray) -> bool:
+    def accept(self, direction: np.ndarray, obs) -> bool:
         """The alarm's region: in front of the car (azimuth within ``front_deg``), or the
-        front-back mirror image of that with respect to the head (``mirror``)."""
-        v = np.asarray(direction, float)
-        candidates = [v, np.array([-v[0], v[1], v[2]])] if self.mirror else [v]
-        return any(abs(math.degrees(fixed_azimuth(self._obs, c))) <= self.front_deg for c in candidates)
+        front-back mirror image of that with respect to the head (``mirror``); ``obs`` gives
+        the neck's pose."""
+        return abs(math.degrees(fixed_azimuth(obs, direction))) <= self.front_deg or (
+            self.mirror and abs(math.degrees(fixed_azimuth(obs, direction, mirror=True))) <= self.front_deg)
 
     def should_release(self, obs, info) -> bool:
-        self._obs = obs
         on, d = heard(obs, self.label, self.threshold, self.min_conf)
-        pro = on and d is not None and self.accept(d)
-        con = on and d is not None and not self.accept(d)
+        accepted = d is not None and self.accept(d, obs)
+        pro = on and accepted
+        con = on and d is not None and not accepted
         decided = self.evidence.push(pro, con)
         # Hearing the sound, stop moving and listen, unless most of the recent frames place
         # it outside the accepted region (another source's: carry on). Moving on while the
@@ -226,7 +226,7 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     window = 6
     votes = 2
 
-    def accept(self, direction: np.ndarray) -> bool:
+    def accept(self, direction: np.ndarray, obs) -> bool:
         az = azimuth_deg(direction)
         return -self.right_deg[1] <= az <= -self.right_deg[0]
 
@@ -241,18 +241,17 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def fixed_azimuth(obs, v_head) -> float:
-    """Azimuth (rad, + left) in the frame fixed at the episode's start, from a head-frame vector.
+def fixed_azimuth(obs, v_head, *, mirror: bool = False) -> float:
+    """Azimuth (rad, + left) in the frame fixed at the episode's start, from a head-frame vector
+    (``mirror``: of its front-back mirror image, see :func:`~acoustic_sim.frames.head_to_body_azimuth`).
 
     The head turns on the wheelchair by the neck's yaw then pitch (proprioception), the
     wheelchair by its odometry heading: ``v = Rz(heading) Rz(neck_yaw) Ry(neck_pitch) v_head``.
     Without a wheelchair (no ``base`` in the observation: the car seat) the heading is 0.
     """
-    yaw, pitch = float(obs["joint_pos"][0]), float(obs["joint_pos"][1])
-    x, y, z = (float(c) for c in v_head)
-    x, z = x * math.cos(pitch) + z * math.sin(pitch), -x * math.sin(pitch) + z * math.cos(pitch)
     heading = float(obs["base"][0]) if "base" in obs else 0.0
-    return _wrap(math.atan2(y, x) + yaw + heading)
+    return head_to_body_azimuth(v_head, float(obs["joint_pos"][0]), float(obs["joint_pos"][1]), heading=heading,
+                                mirror=mirror)
 
 
 class TurnPolicy(TaskPolicy):
@@ -346,9 +345,8 @@ class ScriptedCallResponse(TurnPolicy):
     def act(self, obs, info) -> np.ndarray:
         on, d = heard(obs, "human_voice", self.threshold, self.min_conf)
         if on and d is not None:
-            mirrored = np.array([-d[0], d[1], d[2]])
             w = 0.1 + float(obs["class_conf"][CLASSES.index("human_voice")])
-            self.frames.append((fixed_azimuth(obs, d), fixed_azimuth(obs, mirrored), w))
+            self.frames.append((fixed_azimuth(obs, d), fixed_azimuth(obs, d, mirror=True), w))
             self.gap = 0
         else:
             self.gap += 1

@@ -200,10 +200,10 @@ def test_reverse_alarm_listening_pose_and_front_back_mirror(envs):
     for _ in range(40):  # the head settles in the listening pose (the lever still waits or creeps)
         obs, *_, info = env.step(pol.act(obs, info))
     assert math.degrees(float(obs["joint_pos"][0])) == pytest.approx(pol.head_yaw_deg, abs=3.0)
-    pol._obs = {"joint_pos": np.radians([pol.head_yaw_deg, 0.0])}
+    pose = {"joint_pos": np.radians([pol.head_yaw_deg, 0.0])}
 
     def accepts(head_az_deg):
-        return pol.accept(sph_to_vec(head_az_deg, 0.0))
+        return pol.accept(sph_to_vec(head_az_deg, 0.0), pose)
 
     assert accepts(45.0) and accepts(45.0 + 15.0) and accepts(45.0 - 15.0)  # in front of the car
     assert accepts(135.0)  # its mirror image (car +90 deg): the ears cannot tell them apart
