@@ -16,7 +16,6 @@ import numpy as np
 from gymnasium import spaces
 
 from acoustic_sim.acoustics import sounds
-from acoustic_sim.auditory.pipeline import COVERAGE
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scene
 from tasks.actions import ActionChannel
@@ -49,7 +48,7 @@ class CabinLeverTask(HearingTaskEnv):
     side = "left"
     background_db_range = (40.0, 55.0)
     """Engine idling and road noise: the cabin's diffuse background, dB SPL per episode."""
-    coverage = COVERAGE
+    coverage = 0.5
     """Attribution: in the cabin the radio, the key turn and the gearshift's clunk start while
     the ratchet or the alarm class is heard; a frame counts for a class only when it covers
     half of the class's bins (:mod:`acoustic_sim.auditory.pipeline`; ParkingBrake, paper

@@ -43,7 +43,7 @@ relay clicks (the relay's clicks are ratchet-like, so the ratchet class is detec
 the speech's onset lights up two of the ratchet's twelve bins: summed into the ratchet's
 evidence, it placed the ratchet at -87 deg. A frame therefore counts for a class only when
 its valid bins cover at least ``coverage`` of the class's bank bins (the cabin tasks:
-:data:`COVERAGE`, 0.5; the default 0 keeps every frame): a sound of the class excites its
+0.5, ``tasks.cabin.CabinLeverTask.coverage``; the default 0 keeps every frame): a sound of the class excites its
 band, another sound's onset only some of it. Speech does not always (voiced frames light
 up its harmonics), so the room task keeps 0 (CallResponse, fast models, 20 episodes: 1.0
 at 0, 0.95 at 0.5). Measured with the
@@ -88,10 +88,6 @@ DIRECTION_FRAMES = 12
 
 ONSET_RATIO = 2.0
 """The ``"ratio"`` precedence gate: a bin's power must have doubled (+3 dB) since the last frame."""
-
-COVERAGE = 0.5
-"""The cabin tasks' attribution rule: a frame's evidence counts for a class when it is valid
-in at least this fraction of the class's bank bins (module docstring)."""
 
 PRECEDENCE = ("wavefront", "ratio", None)
 """Precedence modes of the streaming pipeline (module docstring); the first is the default."""
@@ -148,7 +144,7 @@ class AuditoryPipeline:
     coverage : float
         A frame counts for a class's direction only when its valid bins cover at least this
         fraction of the class's bank bins, 0..1 (default 0: every frame; the cabin tasks use
-        :data:`COVERAGE`).
+        0.5).
 
     Use :meth:`load` to get one with trained (cached) models.
     """
