@@ -42,7 +42,7 @@ from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_FFT, bin_frequencies, frequency_to_bin
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError, HRTFError
-from acoustic_sim.frames import sph_to_vec, vec_to_sph
+from acoustic_sim.frames import vec_to_sph
 
 PAPER_FREQUENCIES_HZ = (301.5, 560.0, 990.5, 5706.3, 8548.7, 11994.0)
 """The paper's six ILD/IPD frequencies (Hz): bins 14, 26, 46, 265, 397 and 557 of the
@@ -360,7 +360,7 @@ def median_plane_differences(h: HRTF) -> dict:
         ``directions`` (measured directions on the median plane), ``band_hz``,
         ``max_abs_ild_db``, ``max_abs_ipd_rad``, ``consequence`` (a sentence).
     """
-    vectors = sph_to_vec(h.azimuth_deg, h.elevation_deg)
+    vectors = h.directions
     on = np.flatnonzero(np.abs(vectors[:, 1]) < 1e-6)
     f = bin_frequencies(N_FFT)
     bins = np.flatnonzero((f >= MEDIAN_PLANE_BAND_HZ[0]) & (f <= MEDIAN_PLANE_BAND_HZ[1]))
