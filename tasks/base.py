@@ -149,6 +149,8 @@ class HearingTaskEnv(gym.Env):
         self.audio_obs, self.spectra_obs, self.image_obs = bool(audio_obs), bool(spectra_obs), bool(image_obs)
         self.image_size = (h, w)
         self._threads = TorchThreads(torch_threads)
+        self._noise_reference_of = None  # (ambient power, ego level) the pipeline's noise reference was made from
+        self._ego_unit_spectrum = None  # (ego noise, its unit_power_spectrum for the front end's window)
         self.layout = action_layout(self.scene_name)
         self.pipeline = make_pipeline(profile, hrtf, self.coverage)
         self.ears = load_hrtf(hrtf)
@@ -295,6 +297,7 @@ class HearingTaskEnv(gym.Env):
         n = round(self.warmup_s * FRAME_RATE)
         ambient, counted = np.zeros((2, N_BINS)), 0
         self.ambient_power = microphone_noise_power()
+        self._noise_reference_of = None  # (ambient power, ego level) of the pipeline's reference
         for k in range(n):
             self.soundscape.begin_block(c.advance())
             self._set_noise_reference()
@@ -320,8 +323,20 @@ class HearingTaskEnv(gym.Env):
         room, so its reference holds the room's steady noise too: a bin counts only where a
         sound stands 10 times above both."""
         c = self.coupling
-        ego = c.ego_noise.expected_power_spectrum(window=self.pipeline.frontend.window) if c.ego_noise is not None else 0.0
+        level = c.ego_noise.pressure_rms if c.ego_noise is not None else 0.0
+        last = self._noise_reference_of
+        if last is not None and last[0] is self.ambient_power and last[1] == level:
+            return  # the same ambient and ego level as the last block: the same reference
+        if c.ego_noise is None:
+            ego = 0.0
+        else:  # = expected_power_spectrum(window=...) at this level, without its checks each block
+            unit = self._ego_unit_spectrum
+            if unit is None or unit[0] is not c.ego_noise:
+                window = self.pipeline.frontend.window
+                unit = self._ego_unit_spectrum = (c.ego_noise, c.ego_noise.unit_power_spectrum(window=window))
+            ego = unit[1] * level**2
         self.pipeline.set_noise_power(self.ambient_power + np.asarray(ego) / FULL_SCALE_PA**2)
+        self._noise_reference_of = (self.ambient_power, level)
 
     def at(self, t: float) -> float:
         """Project-clock time (s) of ``t`` seconds after the episode's start."""
@@ -396,8 +411,7 @@ class HearingTaskEnv(gym.Env):
     # -- observation and info ---------------------------------------------------------------------------
     def _observation(self) -> dict:
         v = self.view
-        pos = np.array([v.joint_angle(j) for j in self._joint_ids], dtype=np.float32)
-        vel = np.array([v.joint_velocity(j) for j in self._joint_ids], dtype=np.float32)
+        pos, vel = (a.astype(np.float32) for a in v.joint_states(self._joint_ids))
         probs = np.zeros(len(CLASSES), np.float32)
         dirs = np.zeros((len(CLASSES), 3), np.float32)
         conf = np.zeros(len(CLASSES), np.float32)

@@ -259,6 +259,8 @@ def test_ego_noise_level_and_spectrum_match_the_stream():
     frames = x[0, : x.shape[1] // n * n].reshape(-1, n) * signal.get_window("hamming", n)
     empirical = np.mean(np.abs(np.fft.rfft(frames, axis=1)) ** 2, axis=0)
     expected = ego.expected_power_spectrum(n, "hamming")
+    # The unit spectrum times the level squared is the same spectrum, bit for bit.
+    assert np.array_equal(ego.unit_power_spectrum(n, "hamming") * ego.pressure_rms**2, expected)
     band = slice(20, 560)  # 430 Hz .. 12 kHz, where the noise is well above numerical floor
     ratio = empirical[band] / expected[band]
     assert 0.85 < np.median(ratio) < 1.15 and 0.9 < empirical.sum() / expected.sum() < 1.1
@@ -278,6 +280,8 @@ def test_ego_noise_errors():
         ego.set_activity([np.nan, 0.0], [0.0, 0.0])
     with pytest.raises(ConfigError, match="window"):
         ego.expected_power_spectrum(2048, np.ones(10))
+    with pytest.raises(ConfigError, match="window"):
+        ego.unit_power_spectrum(2048, np.ones(10))
     with pytest.raises(ConfigError, match="from_view"):
         ego.update(None)
 

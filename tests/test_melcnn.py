@@ -50,6 +50,28 @@ def test_fusion_weights_by_ear_volume():
     np.testing.assert_allclose(batch, [[0.3, 0.7, 0.75], [0.4, 0.6, 0.5]])
 
 
+def test_one_frame_fusion_is_the_batch_fusion_bit_for_bit():
+    rng = np.random.default_rng(3)
+    p = rng.uniform(size=(5, 2, 6))
+    v = rng.exponential(size=(5, 2))
+    v[2] = 0.0  # a silent frame
+    batch = mc.fuse(p[:, 0], p[:, 1], v[:, 0], v[:, 1])
+    for k in range(5):
+        assert np.array_equal(mc.fuse_unchecked(p[k, 0], p[k, 1], v[k, 0], v[k, 1]), batch[k])
+
+
+def test_forward_pools_like_torchs_nchw_max_pool_bit_for_bit():
+    torch.manual_seed(0)
+    model = mc.MelCNN(mc.get_profile("fast").net).eval()
+    x = torch.rand(6, 25, 128) * -1.0
+    with torch.inference_mode():
+        y = x.unsqueeze(1).transpose(2, 3).contiguous()
+        y = model.pool1(torch.relu(model.conv1(y)))  # plain NCHW pooling
+        y = model.pool2(torch.relu(model.conv2(y)))
+        y = torch.relu(model.fc2(torch.relu(model.fc1(y.flatten(1)))))
+        assert torch.equal(model(x), model.out(y))
+
+
 @pytest.mark.parametrize("args", [
     ([0.2], [0.3, 0.4], 1.0, 1.0),  # shapes differ
     ([0.2], [0.3], -1.0, 1.0),  # negative volume

@@ -8,7 +8,7 @@ from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
-from acoustic_sim.auditory.precedence import FirstWavefront
+from acoustic_sim.auditory.precedence import FirstWavefront, _row_medians
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import rotation_zyx
 from acoustic_sim.world.events import ratchet_clicks
@@ -66,6 +66,14 @@ def test_steady_noise_gives_one_onset():
     x = np.concatenate([1e-4 * rng.standard_normal((2, 8000)), 1e-2 * rng.standard_normal((2, 44100))], axis=1)
     _, onsets = _onsets(x, [706])
     assert len(onsets) == 1 and abs(onsets[0] - 8000) <= 22
+
+
+@pytest.mark.parametrize("width", [1, 2, 7, 19, 20])
+def test_row_medians_are_numpys_medians(width):
+    w = np.random.default_rng(width).exponential(size=(40, width))
+    w[:3, : (width + 1) // 2] = np.inf  # the baseline before the start
+    w[5] = np.inf
+    assert np.array_equal(_row_medians(w), np.median(w, axis=1))
 
 
 def test_bad_parameters_are_errors():

@@ -56,6 +56,15 @@ def test_view_reads_by_name_and_returns_copies(cabin):
     pos, mat = v.site_pose(names.ALARM_SPEAKER_SITE)
     assert pos.shape == (3,) and mat.shape == (3, 3)
     assert v.time() == pytest.approx(data.time)
+    # Several joints at once: the same numbers as one by one, in the order asked.
+    data.qpos[:] = np.linspace(-0.5, 0.5, model.nq)
+    data.qvel[:] = np.linspace(1.0, -1.0, model.nv)
+    joints = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE][::-3]
+    qpos, qvel = v.joint_states(joints)
+    assert np.array_equal(qpos, [v.joint_angle(j) for j in joints])
+    assert np.array_equal(qvel, [v.joint_velocity(j) for j in joints])
+    data.qpos[:] = 0.0
+    data.qvel[:] = 0.0
 
 
 def test_view_errors(cabin):
@@ -63,6 +72,8 @@ def test_view_errors(cabin):
     v = WorldView(model, data)
     with pytest.raises(ConfigError, match="no site 'car/nowhere'"):
         v.site_position("car/nowhere")
+    with pytest.raises(ConfigError, match="no joint 'nowhere'"):
+        v.joint_states(["nowhere"])
     with pytest.raises(ConfigError, match="must be box-typed"):
         v.site_box(names.ALARM_SPEAKER_SITE)
     room_model, room_data, _ = scene.load_scene("room")

@@ -131,7 +131,16 @@ def normalize_log_mel(mel_power_frames) -> np.ndarray:
     -MEL_RANGE_DB and divided by MEL_RANGE_DB. An all-silent patch gives all -1.
     """
     p = np.asarray(mel_power_frames, np.float32)
-    db = 10.0 * np.log10(np.maximum(p, TINY**2))
+    return _relative_log_mel(_mel_db(p), p)
+
+
+def _mel_db(p: np.ndarray) -> np.ndarray:
+    """dB of float32 mel power, elementwise (so a patch's rows can be converted once each)."""
+    return 10.0 * np.log10(np.maximum(p, TINY**2))
+
+
+def _relative_log_mel(db: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """:func:`normalize_log_mel` of patches given their dB (:func:`_mel_db`) and power."""
     top = db.max(axis=(-2, -1), keepdims=True)
     rel = np.clip(db - top, -MEL_RANGE_DB, 0.0) / MEL_RANGE_DB
     silent = np.all(p <= TINY**2, axis=(-2, -1), keepdims=True)
@@ -159,9 +168,11 @@ class MelHistory:
     def __init__(self, *, frames: int = MEL_FRAMES, sample_rate: int = SAMPLE_RATE) -> None:
         self.sample_rate = sample_rate
         self.power = np.zeros((2, frames, N_MELS), np.float32)
+        self._db = _mel_db(self.power)  # each frame's dB, converted once when it arrives
 
     def reset(self) -> None:
         self.power[:] = 0.0
+        self._db = _mel_db(self.power)
 
     def push(self, spectra) -> None:
         x = np.asarray(spectra)
@@ -169,9 +180,12 @@ class MelHistory:
             raise ConfigError(f"one frame of spectra must have shape (2, n_bins), got {x.shape}")
         self.power = np.roll(self.power, -1, axis=1)
         self.power[:, -1] = mel_power(x, sample_rate=self.sample_rate)
+        self._db = np.roll(self._db, -1, axis=1)
+        self._db[:, -1] = _mel_db(self.power[:, -1])
 
     def patch(self) -> np.ndarray:
-        return normalize_log_mel(self.power)
+        """``normalize_log_mel(self.power)``, from the stored dB."""
+        return _relative_log_mel(self._db, self.power)
 
 
 def log_mel_patches(spectra, *, frames: int = MEL_FRAMES, sample_rate: int = SAMPLE_RATE) -> np.ndarray:

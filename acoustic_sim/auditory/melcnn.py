@@ -343,7 +343,18 @@ def fuse(p_left, p_right, v_left, v_right) -> np.ndarray:
     for v in (vl, vr):
         if not np.all(np.isfinite(v) & (v >= 0)):
             raise ConfigError("ear volumes must be finite and >= 0")
+    return fuse_unchecked(pl, pr, vl, vr)
+
+
+def fuse_unchecked(pl: np.ndarray, pr: np.ndarray, vl, vr) -> np.ndarray:
+    """:func:`fuse` without its argument checks, for callers whose inputs are valid by
+    construction (the streaming pipeline, once per frame): float64 arrays ``pl``, ``pr``
+    (..., C) and volumes ``vl``, ``vr`` (...) or floats."""
+    vl, vr = np.asarray(vl, np.float64), np.asarray(vr, np.float64)
     total = (vl + vr)[..., None]
+    if total.ndim == 1:  # one frame: plain arithmetic, the same operations as the array form
+        t = float(total[0])
+        return 0.5 * (pl + pr) if t == 0 else (vl[..., None] * pl + vr[..., None] * pr) / t
     silent = total == 0
     safe = np.where(silent, 1.0, total)
     weighted = (vl[..., None] * pl + vr[..., None] * pr) / safe
@@ -410,6 +421,19 @@ def characteristic_bins(spectrum_sum, spectrum_frames, *, energy_fraction: float
 # --------------------------------------------------------------------------- the network
 
 
+def _pool(pool: nn.MaxPool2d, x: torch.Tensor) -> torch.Tensor:
+    """``pool(x)`` computed in channels-last memory, returned contiguous (NCHW).
+
+    Torch's CPU max-pool is slow on NCHW tensors (one frame of both ears, one thread:
+    ``paper`` pool1 0.9 ms of a 1.7 ms forward pass) and fast on channels-last ones
+    (0.06 ms); a maximum does not depend on memory layout, so the result is the same bit
+    for bit, and the convolutions keep their NCHW layout (and their exact outputs).
+    Measured forward pass, batch of 2 ears, one thread: ``paper`` 1.71 -> 0.99 ms,
+    ``fast`` 0.81 -> 0.41 ms.
+    """
+    return pool(x.contiguous(memory_format=torch.channels_last)).contiguous()
+
+
 class MelCNN(nn.Module):
     """The logMel-CNN detector of one ear, with the metadata it was trained with.
 
@@ -463,8 +487,8 @@ class MelCNN(nn.Module):
             (N, C) logits; ``sigmoid`` gives the existence probabilities.
         """
         x = patches.unsqueeze(1).transpose(2, 3).contiguous()  # (N, 1, mel, frames): Piczak's freq x time
-        x = self.dropout(self.pool1(F.relu(self.conv1(x))))
-        x = self.dropout(self.pool2(F.relu(self.conv2(x))))
+        x = self.dropout(_pool(self.pool1, F.relu(self.conv1(x))))
+        x = self.dropout(_pool(self.pool2, F.relu(self.conv2(x))))
         x = self.dropout(F.relu(self.fc1(x.flatten(1))))
         x = self.dropout(F.relu(self.fc2(x)))
         return self.out(x)

@@ -69,7 +69,7 @@ from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.features import MEL_FRAMES, MelHistory, ear_volume, ild_ipd, log_mel_patches
 from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_frequencies
-from acoustic_sim.auditory.melcnn import MelCNN, fuse
+from acoustic_sim.auditory.melcnn import MelCNN, fuse_unchecked
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.auditory.precedence import FirstWavefront
 from acoustic_sim.auditory.ssdenet import SSDENetBank, noise_power_spectrum, valid_bins
@@ -191,7 +191,8 @@ class AuditoryPipeline:
         self._gcc: GccPhat | None = None
         self.frontend = EarFrontEnd()
         self.mel = MelHistory()
-        self.volumes: deque = deque(maxlen=MEL_FRAMES)
+        self._volumes = np.zeros((MEL_FRAMES, 2))  # the last frames' ear volumes, oldest first
+        self._n_volumes = 0  # how many of them are real frames
         self.direction_frames = int(direction_frames)
         # Per recent frame: [valid bank bins (n_bank,), ILD/IPD at them (n_valid, 5),
         # existence maps (n_bank, D) or None until a detection needs them, which bins of
@@ -244,7 +245,8 @@ class AuditoryPipeline:
         """Forget all audio (a new episode): clock back to sample 0."""
         self.frontend.reset()
         self.mel.reset()
-        self.volumes.clear()
+        self._volumes[:] = 0.0
+        self._n_volumes = 0
         self.evidence.clear()
         self._last_power = None
         if self.wavefront is not None:
@@ -260,7 +262,9 @@ class AuditoryPipeline:
 
     def _frame(self, k: int, t: float, x: np.ndarray) -> Percept:
         self.mel.push(x)
-        self.volumes.append(ear_volume(x))
+        self._volumes[:-1] = self._volumes[1:]
+        self._volumes[-1] = ear_volume(x)
+        self._n_volumes = min(self._n_volumes + 1, MEL_FRAMES)
         bins = self.ssdenet.bins
         if self.precedence == "wavefront":
             onset = self.wavefront.take(int(frame_end_sample(k)))
@@ -280,12 +284,16 @@ class AuditoryPipeline:
                 last = self._last_power
                 self._last_power = power
                 valid &= power > self.onset_ratio * last if last is not None else True
-        sel = cues[:, valid]
-        self.evidence.append([valid, ild_ipd(sel[0], sel[1]), None, np.zeros_like(valid)])
+        if valid.any():
+            sel = cues[:, valid]
+            features = ild_ipd(sel[0], sel[1])
+        else:
+            features = np.empty((0, 5), np.float32)
+        self.evidence.append([valid, features, None, np.zeros_like(valid)])
         patch = self.mel.patch()
-        volume = np.mean(np.asarray(self.volumes), axis=0)
-        p_ears = self.melcnn.predict(patch)  # (2, C)
-        probs = fuse(p_ears[0], p_ears[1], volume[0], volume[1]).astype(np.float32)
+        volume = self._volumes[-self._n_volumes:].mean(axis=0)  # over the patch's frames heard so far
+        p_ears = self.melcnn.predict(patch).astype(np.float64)  # (2, C)
+        probs = fuse_unchecked(p_ears[0], p_ears[1], volume[0], volume[1]).astype(np.float32)
         order = np.argsort(-probs, kind="stable")
         detected = tuple(self.classes[i] for i in order if probs[i] >= self.threshold)
         directions = {}

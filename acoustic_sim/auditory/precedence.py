@@ -133,7 +133,7 @@ class FirstWavefront:
             energy = np.concatenate([self._energy, blocks])
             # Block j's baseline: the median of blocks j - far .. j - near (inf before the start).
             windows = np.lib.stride_tricks.sliding_window_view(energy, self.far - self.near + 1)[:whole]
-            above = blocks > self.ratio * np.median(windows, axis=1)
+            above = blocks > self.ratio * _row_medians(windows)
             rising = above & ~np.concatenate([[self._above], above[:-1]])
             for j in np.flatnonzero(rising):
                 b = self._blocks + int(j)
@@ -164,6 +164,17 @@ class FirstWavefront:
         part = self._audio[:, lo : a + self.pre + self.post]
         seg[:, lo - a : lo - a + part.shape[1]] = part
         return np.fft.rfft(seg * self.taper, n=self.n_fft, axis=-1)
+
+
+def _row_medians(w: np.ndarray) -> np.ndarray:
+    """``np.median(w, axis=1)``, the same numbers, by partial sorting (five times faster on
+    the detector's 32 x 19 windows, where ``np.median``'s overhead dominates)."""
+    n = w.shape[1]
+    k = n // 2
+    if n % 2:
+        return np.partition(w, k, axis=1)[:, k]
+    part = np.partition(w, (k - 1, k), axis=1)
+    return (part[:, k - 1] + part[:, k]) / 2.0
 
 
 __all__ = ["FirstWavefront"]

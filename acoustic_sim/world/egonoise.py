@@ -280,6 +280,17 @@ class MotorEgoNoise:
             the noise (a Gaussian bin's mean magnitude is ``sqrt(pi / 4)`` of that). The
             paper's threshold is 10 times the driving spectrum per bin.
         """
+        if level_db is None:
+            p = self._target
+        else:
+            if not np.isfinite(level_db) and level_db != -np.inf:
+                raise ConfigError(f"ego noise: level_db must be a number of dB SPL, got {level_db}")
+            p = float(db_spl_to_pa(level_db))
+        return self.unit_power_spectrum(nfft, window) * p**2
+
+    def unit_power_spectrum(self, nfft: int = 2048, window="hamming") -> np.ndarray:
+        """:meth:`expected_power_spectrum` at 1 Pa RMS (Pa^2 per bin per Pa^2): the shape
+        that the level scales, for callers that follow the level block by block."""
         if not isinstance(nfft, (int, np.integer)) or not 16 <= nfft <= 65536:
             raise ConfigError(f"ego noise: nfft must be an integer 16..65536, got {nfft!r}")
         if isinstance(window, str):
@@ -291,14 +302,7 @@ class MotorEgoNoise:
             win = np.asarray(window, dtype=float)
             if win.shape != (nfft,) or not np.all(np.isfinite(win)):
                 raise ConfigError(f"ego noise: window must be {nfft} finite samples, got shape {win.shape}")
-        if level_db is None:
-            p = self._target
-        else:
-            if not np.isfinite(level_db) and level_db != -np.inf:
-                raise ConfigError(f"ego noise: level_db must be a number of dB SPL, got {level_db}")
-            p = float(db_spl_to_pa(level_db))
-        shape = self._unit_spectrum(nfft, win)
-        return shape * p**2
+        return self._unit_spectrum(nfft, win)
 
     def _unit_spectrum(self, nfft: int, win: np.ndarray) -> np.ndarray:
         key = (nfft, win.tobytes())

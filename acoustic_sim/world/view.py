@@ -211,6 +211,7 @@ class WorldView:
         self._sites: dict[str, object] = {}
         self._bodies: dict[str, object] = {}
         self._joints: dict[str, object] = {}
+        self._joint_addresses: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         self.gearshift_geometry: GearshiftGeometry | None = None
         """Detents of the cabin's gearshift; ``None`` in scenes without one."""
         self.ratchet_geometry: RatchetGeometry | None = None
@@ -386,6 +387,23 @@ class WorldView:
         if j.qvel.size != 1:
             raise ConfigError(f"joint {name!r} has {j.qvel.size} velocities; joint_velocity reads hinges and slides")
         return float(j.qvel[0])
+
+    def joint_states(self, names) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (rad or m) and velocities of several hinge or slide joints at once:
+        two float64 arrays in the order of ``names`` (a sequence of joint names); the same
+        numbers as :meth:`joint_angle` and :meth:`joint_velocity` one by one."""
+        key = tuple(names)
+        adr = self._joint_addresses.get(key)
+        if adr is None:
+            qpos, qvel = [], []
+            for name in key:
+                j = self._joint(name)
+                if j.qpos.size != 1:
+                    raise ConfigError(f"joint {name!r} has {j.qpos.size} coordinates; joint_states reads hinges and slides")
+                qpos.append(self.model.jnt_qposadr[j.id])
+                qvel.append(self.model.jnt_dofadr[j.id])
+            adr = self._joint_addresses[key] = (np.asarray(qpos, np.int64), np.asarray(qvel, np.int64))
+        return self._data.qpos[adr[0]], self._data.qvel[adr[1]]
 
     # -- cabin mechanisms -----------------------------------------------------------------------
     def _need(self, geometry, what: str):
