@@ -111,6 +111,8 @@ class HearingTaskEnv(gym.Env):
     coverage = 0.0
     """The auditory pipeline's attribution rule (``AuditoryPipeline(coverage=)``): 0, every
     frame counts for every detected class."""
+    specificity = 0.0
+    """The pipeline's second attribution rule (``AuditoryPipeline(specificity=)``): 0, off."""
     warmup_s = 0.5
     """Seconds the ears listen before the episode starts (see :meth:`_warm_up`)."""
     spec_action_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
@@ -152,7 +154,7 @@ class HearingTaskEnv(gym.Env):
         self._noise_reference_of = None  # (ambient power, ego level) the pipeline's noise reference was made from
         self._ego_unit_spectrum = None  # (ego noise, its unit_power_spectrum for the front end's window)
         self.layout = action_layout(self.scene_name)
-        self.pipeline = make_pipeline(profile, hrtf, self.coverage)
+        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32)

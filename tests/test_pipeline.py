@@ -283,6 +283,32 @@ def test_a_frame_counts_for_a_class_only_when_it_covers_its_bins(pipe, kemar):
             AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, coverage=bad)
 
 
+def test_a_frame_counts_for_a_class_only_when_its_energy_lies_in_the_class_bins(pipe, kemar):
+    """Broadband noise lights up a narrow class's bins but puts a tiny share of its energy
+    there: with specificity 0.3 the class gets no direction from it, with 0 it does; a sine
+    in one of the class's bins keeps its direction at 0.3 (most of its energy is there)."""
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    bank = pipe.ssdenet
+    cnn = _DetectsSome(pipe.melcnn, bank.bins)
+    narrow = pipe.classes[2]  # 4 bins
+    rng = np.random.default_rng(9)
+    noise = 0.05 * rng.standard_normal(int(0.5 * SAMPLE_RATE))
+    t = np.arange(noise.size) / SAMPLE_RATE
+    sine = 0.05 * np.sin(2 * np.pi * float(bin_frequencies()[cnn.characteristic_bins[narrow][1]]) * t)
+    got = {}
+    for name, x in (("noise", noise), ("sine", sine)):
+        for specificity in (0.0, 0.3):
+            p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, precedence=None,
+                                 specificity=specificity)
+            got[name, specificity] = [q.directions.get(narrow) for q in p.process(np.stack([x, 0.8 * x]))[16:]]
+    assert all(d is not None for d in got["noise", 0.0]) and all(d is None for d in got["noise", 0.3])
+    assert all(d is not None for d in got["sine", 0.3])
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ConfigError, match="specificity"):
+            AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, specificity=bad)
+
+
 def test_room_experiment_repeats_each_angle(kemar):
     """``trials`` renders every angle that many times (new noise, level and background each);
     per-angle errors are the mean over them, accuracies count every trial."""

@@ -89,6 +89,9 @@ DIRECTION_FRAMES = 12
 ONSET_RATIO = 2.0
 """The ``"ratio"`` precedence gate: a bin's power must have doubled (+3 dB) since the last frame."""
 
+SPECIFICITY_BAND_HZ = (300.0, 12000.0)
+"""The band (Hz) over which ``specificity`` measures an onset's energy: the networks' range."""
+
 PRECEDENCE = ("wavefront", "ratio", None)
 """Precedence modes of the streaming pipeline (module docstring); the first is the default."""
 
@@ -145,6 +148,14 @@ class AuditoryPipeline:
         A frame counts for a class's direction only when its valid bins cover at least this
         fraction of the class's bank bins, 0..1 (default 0: every frame; the cabin tasks use
         0.5).
+    specificity : float
+        A frame counts for a class's direction only when at least this fraction of its
+        onset's energy (the first wavefront's spectrum, or the frame's without precedence;
+        :data:`SPECIFICITY_BAND_HZ`, both ears) lies in the class's characteristic bins,
+        0..1 (default 0: every frame; the cabin tasks use 0.2). A broadband onset (a car
+        horn, a door) while a tonal alarm is detected lights up the alarm's bins too, and
+        would put the alarm where the horn is; its energy, spread over all frequencies,
+        hardly lies in the alarm's bins.
 
     Use :meth:`load` to get one with trained (cached) models.
     """
@@ -152,7 +163,7 @@ class AuditoryPipeline:
     def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
-                 onset_ratio: float = ONSET_RATIO, coverage: float = 0.0) -> None:
+                 onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -169,6 +180,8 @@ class AuditoryPipeline:
             raise ConfigError(f"onset_ratio must be >= 1, got {onset_ratio}")
         if not (coverage is not None and np.isfinite(coverage) and 0.0 <= coverage <= 1.0):
             raise ConfigError(f"coverage must be in [0, 1], got {coverage}")
+        if not (specificity is not None and np.isfinite(specificity) and 0.0 <= specificity <= 1.0):
+            raise ConfigError(f"specificity must be in [0, 1], got {specificity}")
         if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
             raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
         self.hrtf = hrtf
@@ -187,6 +200,17 @@ class AuditoryPipeline:
             self._class_masks[c] = np.isin(bins, cb) if cb is not None and np.size(cb) else True
         self._class_sizes = self._class_masks.sum(axis=1)  # (C,)
         self.coverage = float(coverage)
+        self.specificity = float(specificity)
+        f = bin_frequencies()
+        self._band = (f >= SPECIFICITY_BAND_HZ[0]) & (f <= SPECIFICITY_BAND_HZ[1])
+        # Per class, which of the band's bins are characteristic (all of them for a class without).
+        self._class_band = np.ones((len(self.classes), int(self._band.sum())))
+        for c, name in enumerate(self.classes):
+            cb = melcnn.characteristic_bins.get(name)
+            if cb is not None and np.size(cb):
+                own = np.zeros(N_BINS, bool)
+                own[np.asarray(cb)] = True
+                self._class_band[c] = own[self._band]
         self._music: Music | None = None
         self._gcc: GccPhat | None = None
         self.frontend = EarFrontEnd()
@@ -196,7 +220,8 @@ class AuditoryPipeline:
         self.direction_frames = int(direction_frames)
         # Per recent frame: [valid bank bins (n_bank,), ILD/IPD at them (n_valid, 5),
         # existence maps (n_bank, D) or None until a detection needs them, which bins of
-        # them have been computed (n_bank,)].
+        # them have been computed (n_bank,), per class the share of the onset's energy in
+        # its characteristic bins (C,) or None when specificity is off].
         self.evidence: deque = deque(maxlen=self.direction_frames)
         self.precedence = precedence
         self.onset_ratio = float(onset_ratio)
@@ -209,7 +234,7 @@ class AuditoryPipeline:
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
              precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = 0.0,
-             progress: bool = True) -> AuditoryPipeline:
+             specificity: float = 0.0, progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -227,7 +252,7 @@ class AuditoryPipeline:
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
                    direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
-                   coverage=coverage)
+                   coverage=coverage, specificity=specificity)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -284,12 +309,18 @@ class AuditoryPipeline:
                 last = self._last_power
                 self._last_power = power
                 valid &= power > self.onset_ratio * last if last is not None else True
+        shares = None
         if valid.any():
             sel = cues[:, valid]
             features = ild_ipd(sel[0], sel[1])
+            if self.specificity > 0.0:
+                spec = onset if self.precedence == "wavefront" else x
+                e = (spec.real**2 + spec.imag**2).sum(axis=0)[self._band]
+                total = float(e.sum())
+                shares = self._class_band @ e / total if total > 0 else np.ones(len(self.classes))
         else:
             features = np.empty((0, 5), np.float32)
-        self.evidence.append([valid, features, None, np.zeros_like(valid)])
+        self.evidence.append([valid, features, None, np.zeros_like(valid), shares])
         patch = self.mel.patch()
         volume = self._volumes[-self._n_volumes:].mean(axis=0)  # over the patch's frames heard so far
         p_ears = self.melcnn.predict(patch).astype(np.float64)  # (2, C)
@@ -316,7 +347,7 @@ class AuditoryPipeline:
         total = np.zeros((len(class_indices), n_dirs), np.float64)
         counts = np.zeros(len(class_indices), np.int64)
         for item in self.evidence:
-            valid, features, maps, have = item
+            valid, features, maps, have, shares = item
             used = valid & union
             if not used.any():
                 continue
@@ -333,6 +364,9 @@ class AuditoryPipeline:
                 # A frame counts for a class only when its valid bins cover enough of the
                 # class's bins: another sound's onset lights up few of them.
                 sel = sel & (sel.sum(axis=1) >= self.coverage * self._class_sizes[class_indices])[:, None]
+            if shares is not None:
+                # ... and only when the onset's energy lies enough in the class's bins.
+                sel = sel & (shares[class_indices] >= self.specificity)[:, None]
             total += sel.astype(np.float32) @ maps[used]
             counts += sel.sum(axis=1)
         return {
