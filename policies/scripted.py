@@ -162,7 +162,8 @@ class ScriptedReverseAlarm(LeverPolicy):
     the ears cannot choose between them. Measured over 90 episodes (seeds 100-189, paper
     models, kemar): head straight, front sector 45 deg: success 0.57, false releases 0.12;
     head straight, mirror accepted, 15 deg: 0.73, 0.02; head turned 45 deg right, mirror
-    accepted, 20 deg: 0.82, 0.03.
+    accepted, 20 deg: 0.82, 0.03; the same with the cabin's specificity rule
+    (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0.
     """
 
     side = "left"
