@@ -57,14 +57,15 @@ def test_view_reads_by_name_and_returns_copies(cabin):
     assert pos.shape == (3,) and mat.shape == (3, 3)
     assert v.time() == pytest.approx(data.time)
     # Several joints at once: the same numbers as one by one, in the order asked.
+    saved = data.qpos.copy(), data.qvel.copy()
     data.qpos[:] = np.linspace(-0.5, 0.5, model.nq)
     data.qvel[:] = np.linspace(1.0, -1.0, model.nv)
     joints = [model.joint(j).name for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE][::-3]
     qpos, qvel = v.joint_states(joints)
+    assert len(joints) > 3
     assert np.array_equal(qpos, [v.joint_angle(j) for j in joints])
     assert np.array_equal(qvel, [v.joint_velocity(j) for j in joints])
-    data.qpos[:] = 0.0
-    data.qvel[:] = 0.0
+    data.qpos[:], data.qvel[:] = saved  # the module's other tests share this world
 
 
 def test_view_errors(cabin):
