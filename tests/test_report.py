@@ -53,3 +53,52 @@ def test_eval_readme_command(tmp_path):
     ):
         bad = subprocess.run([*exe, "eval", "readme", *args], capture_output=True, text=True, cwd=tmp_path)
         assert bad.returncode != 0 and match in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
+
+
+# -- the task results section (acoustic-sim eval tasks) ---------------------------------------------
+
+TASKS = ROOT / "results" / "tasks"
+
+
+def test_readme_task_section_is_the_committed_run():
+    import json
+
+    from acoustic_sim.experiments import tasks
+    from acoustic_sim.runner import TASK_NAMES
+
+    text = (ROOT / "README.md").read_text()
+    assert text.count(tasks.BEGIN) == 1 and text.count(tasks.END) == 1
+    section = text[text.index(tasks.BEGIN) : text.index(tasks.END) + len(tasks.END)]
+    assert section == tasks.readme_section(TASKS), "README is stale: run `acoustic-sim eval readme`"
+    data = json.loads((TASKS / "tasks.json").read_text())
+    assert data["profile"] == "paper" and not data["quick"] and data["episodes"] >= 20  # a full run
+    assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
+    for r in data["rows"]:
+        assert (TASKS / r["task"] / r["policy"] / "episodes.json").is_file()
+
+
+def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
+    from acoustic_sim.experiments import tasks
+    from acoustic_sim.runner import TASK_NAMES
+
+    data = tasks.run_tasks(out=tmp_path, quick=True, episodes=1, progress=False)
+    assert data["profile"] == "fast" and data["episodes"] == 1
+    assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
+    for r in data["rows"]:
+        assert r["episodes"] == 1 and r["success_rate"] in (0.0, 1.0) and sum(r["outcomes"].values()) == 1
+        assert (tmp_path / r["task"] / r["policy"] / "episodes.json").is_file()
+    table = tasks.table(tmp_path)
+    assert table.count("\n| ") == 1 + 9 and "| call-response | blind |" in table  # header and one row each
+    assert (tmp_path / "REPORT.md").read_text().endswith(table + "\n")
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# t\n\n{tasks.BEGIN}\nold\n{tasks.END}\n\nafter\n")
+    assert tasks.update_readme(readme, tmp_path) and not tasks.update_readme(readme, tmp_path)
+    assert readme.read_text().endswith("\n\nafter\n") and "old" not in readme.read_text()
+    readme.write_text("no markers\n")
+    with pytest.raises(ConfigError, match="tasks:begin"):
+        tasks.update_readme(readme, tmp_path)
+    with pytest.raises(ConfigError, match="eval tasks"):
+        tasks.table(tmp_path / "nothing")
+    bad = subprocess.run([sys.executable, "-m", "acoustic_sim.cli", "eval", "tasks", "--out", str(tmp_path / "x"),
+                          "--episodes", "0"], capture_output=True, text=True)
+    assert bad.returncode != 0 and "--episodes" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr

@@ -1,0 +1,118 @@
+"""What hearing the direction is worth: every task with every policy (``acoustic-sim eval tasks``).
+
+For each task (ReverseAlarm, ParkingBrake, CallResponse) and each policy (``scripted``: the
+paper's behaviours from the percepts; ``oracle``: the same behaviours from the ground truth,
+the upper bound; ``blind``: the classes without their directions), ``episodes`` seeded
+episodes (episode ``i`` uses seed ``seed + i``, the same seeds for every policy), run by
+:func:`acoustic_sim.runner.run_episodes`. Writes ``DIR/<task>/<policy>/episodes.json`` (every
+record), ``DIR/tasks.json`` (the summaries) and ``DIR/REPORT.md`` (the table). The README's
+"Task results" section is that table, copied by ``acoustic-sim eval readme`` between
+``<!-- tasks:begin -->`` and ``<!-- tasks:end -->``; a test checks that it agrees with the
+committed ``results/tasks``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from acoustic_sim.errors import ConfigError
+
+POLICIES = ("scripted", "oracle", "blind")
+"""The policies compared, in the table's order."""
+
+BEGIN, END = "<!-- tasks:begin -->", "<!-- tasks:end -->"
+
+EPISODES = 30
+"""Episodes per task and policy of a full run (``--quick``: 3, fast models)."""
+
+
+def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed: int = 100, quick: bool = False,
+              progress: bool = True) -> dict:
+    """Run every task with every policy; returns what ``tasks.json`` holds.
+
+    Parameters
+    ----------
+    out : path-like
+        Output folder (created).
+    profile : str
+        Auditory models, ``paper`` or ``fast`` (``quick`` forces ``fast``).
+    episodes : int, optional
+        Per task and policy; default :data:`EPISODES` (3 when ``quick``).
+    seed : int
+        Seed of the first episode, >= 0.
+    quick : bool
+        Few episodes with the fast models (tests).
+    """
+    from acoustic_sim.runner import TASK_NAMES, run_episodes
+
+    if quick:
+        profile = "fast"
+    episodes = (3 if quick else EPISODES) if episodes is None else episodes
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for task in TASK_NAMES:
+        for policy in POLICIES:
+            result = run_episodes(task, policy, episodes, seed, out / task / policy, profile=profile, progress=progress)
+            s = result["summary"]
+            rows.append({"task": task, "policy": policy, "episodes": len(result["records"]),
+                         "success_rate": s["success_rate"], "false_release_rate": s["false_release_rate"],
+                         "median_reaction_s": s["median_reaction_s"], "outcomes": s["outcomes"]})
+    data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
+    tmp = out / "tasks.json.tmp"
+    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+    tmp.replace(out / "tasks.json")
+    (out / "REPORT.md").write_text("# Task results\n\n" + table(out) + "\n")
+    return data
+
+
+def _load(out: Path) -> dict:
+    path = Path(out) / "tasks.json"
+    if not path.is_file():
+        raise ConfigError(f"{path} is missing: run `acoustic-sim eval tasks --out {out}` first")
+    return json.loads(path.read_text())
+
+
+def _rate(v) -> str:
+    return "n/a" if v is None else f"{v:.2f}"
+
+
+def table(out) -> str:
+    """The Markdown table of a finished run (REPORT.md's body and the README section)."""
+    data = _load(out)
+    lines = [
+        f"{data['episodes']} episodes per task and policy (seeds {data['seed']}-{data['seed'] + data['episodes'] - 1}, "
+        f"`{data['profile']}` models). Reaction: from the sound's start to letting go (the cabin) or to the "
+        "person in view (the room). A false release lets go on a distractor.",
+        "",
+        "| task | policy | success | false releases | median reaction (s) | outcomes |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in data["rows"]:
+        outcomes = ", ".join(f"{k} {v}" for k, v in sorted(r["outcomes"].items()))
+        react = "n/a" if r["median_reaction_s"] is None else f"{r['median_reaction_s']:.2f}"
+        lines.append(f"| {r['task']} | {r['policy']} | {_rate(r['success_rate'])} | {_rate(r['false_release_rate'])} "
+                     f"| {react} | {outcomes} |")
+    return "\n".join(lines)
+
+
+def readme_section(results_dir) -> str:
+    """The README's generated "Task results" section."""
+    return "\n".join([BEGIN, table(results_dir), END])
+
+
+def update_readme(readme, results_dir) -> bool:
+    """Replace the README's task section; returns True when the file changed."""
+    readme = Path(readme)
+    text = readme.read_text()
+    if BEGIN not in text or END not in text:
+        raise ConfigError(f"{readme} has no {BEGIN} ... {END} section to fill")
+    start, stop = text.index(BEGIN), text.index(END) + len(END)
+    new = text[:start] + readme_section(results_dir) + text[stop:]
+    if new != text:
+        readme.write_text(new)
+    return new != text
+
+
+__all__ = ["BEGIN", "END", "EPISODES", "POLICIES", "readme_section", "run_tasks", "table", "update_readme"]
