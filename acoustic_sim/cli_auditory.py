@@ -87,7 +87,7 @@ def add_parsers(sub) -> None:
         description="What hearing the direction is worth: runs each task (reverse-alarm, parking-brake, "
         "call-response) with each policy (scripted: from the percepts; oracle: from the ground truth; "
         "blind: classes without directions) on the same seeds, and writes OUT/<task>/<policy>/episodes.json, "
-        "OUT/tasks.json and OUT/REPORT.md (the table). A full run (30 episodes each, paper models) takes "
+        "OUT/tasks.json, OUT/REPORT.md (the table) and OUT/tasks.png (bar charts). A full run (30 episodes each, paper models) takes "
         "about 4 minutes on 2 cores.",
     )
     et.add_argument("--out", type=Path, required=True, help="output folder")
@@ -211,7 +211,7 @@ def cmd_eval_readme(args) -> int:
     if (args.tasks / "tasks.json").is_file():
         from acoustic_sim.experiments import tasks
 
-        changed = tasks.update_readme(args.readme, args.tasks)
+        changed = tasks.update_readme(args.readme, args.tasks, image_prefix=args.tasks.as_posix())
         print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.tasks}")
     return 0
 
@@ -225,7 +225,8 @@ def cmd_eval_tasks(args) -> int:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
     run_tasks(out=args.out, profile=args.profile, episodes=args.episodes, seed=args.seed, quick=args.quick)
     print(table(args.out))
-    print(f"wrote {args.out / 'tasks.json'}, {args.out / 'REPORT.md'} and one episodes.json per task and policy")
+    print(f"wrote {args.out / 'tasks.json'}, {args.out / 'REPORT.md'}, {args.out / 'tasks.png'} and one episodes.json "
+          "per task and policy")
     return 0
 
 

@@ -75,6 +75,7 @@ def test_readme_task_section_is_the_committed_run():
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
         assert (TASKS / r["task"] / r["policy"] / "episodes.json").is_file()
+    assert (TASKS / "tasks.png").is_file() and "![tasks](results/tasks/tasks.png)" in section
 
 
 def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
@@ -89,7 +90,8 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
         assert (tmp_path / r["task"] / r["policy"] / "episodes.json").is_file()
     table = tasks.table(tmp_path)
     assert table.count("\n| ") == 1 + 9 and "| call-response | blind |" in table  # header and one row each
-    assert (tmp_path / "REPORT.md").read_text().endswith(table + "\n")
+    assert (tmp_path / "REPORT.md").read_text().endswith(table + "\n\n![tasks](tasks.png)\n")
+    assert (tmp_path / "tasks.png").stat().st_size > 10_000
     readme = tmp_path / "README.md"
     readme.write_text(f"# t\n\n{tasks.BEGIN}\nold\n{tasks.END}\n\nafter\n")
     assert tasks.update_readme(readme, tmp_path) and not tasks.update_readme(readme, tmp_path)

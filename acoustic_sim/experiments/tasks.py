@@ -5,8 +5,9 @@ paper's behaviours from the percepts; ``oracle``: the same behaviours from the g
 the upper bound; ``blind``: the classes without their directions), ``episodes`` seeded
 episodes (episode ``i`` uses seed ``seed + i``, the same seeds for every policy), run by
 :func:`acoustic_sim.runner.run_episodes`. Writes ``DIR/<task>/<policy>/episodes.json`` (every
-record), ``DIR/tasks.json`` (the summaries) and ``DIR/REPORT.md`` (the table). The README's
-"Task results" section is that table, copied by ``acoustic-sim eval readme`` between
+record), ``DIR/tasks.json`` (the summaries), ``DIR/REPORT.md`` (the table) and
+``DIR/tasks.png`` (the same as bar charts). The README's "Task results" section is the table
+and the figure, copied by ``acoustic-sim eval readme`` between
 ``<!-- tasks:begin -->`` and ``<!-- tasks:end -->``; a test checks that it agrees with the
 committed ``results/tasks``.
 """
@@ -63,8 +64,60 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
     tmp = out / "tasks.json.tmp"
     tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
     tmp.replace(out / "tasks.json")
-    (out / "REPORT.md").write_text("# Task results\n\n" + table(out) + "\n")
+    report(out)
     return data
+
+
+def report(out) -> Path:
+    """Write ``out/REPORT.md`` and ``out/tasks.png`` from a finished run's ``tasks.json``."""
+    out = Path(out)
+    figure(out)
+    path = out / "REPORT.md"
+    path.write_text("# Task results\n\n" + table(out) + f"\n\n![tasks]({FIGURE})\n")
+    return path
+
+
+FIGURE = "tasks.png"
+"""The run's figure, next to ``tasks.json``."""
+
+
+def figure(out) -> Path:
+    """Bar charts of a finished run (success, false releases, median reaction per task and
+    policy), written to ``out/tasks.png`` from ``tasks.json``; returns its path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    out = Path(out)
+    data = _load(out)
+    task_names = list(dict.fromkeys(r["task"] for r in data["rows"]))
+    cell = {(r["task"], r["policy"]): r for r in data["rows"]}
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.2))
+    x = np.arange(len(task_names))
+    width = 0.8 / len(POLICIES)
+    panels = (("success_rate", "success rate", (0, 1.05)), ("false_release_rate", "false-release rate", (0, 1.05)),
+              ("median_reaction_s", "median reaction (s)", None))
+    for ax, (key, label, ylim) in zip(axes, panels):
+        for i, policy in enumerate(POLICIES):
+            vals = [cell[t, policy][key] for t in task_names]
+            bars = ax.bar(x + (i - (len(POLICIES) - 1) / 2) * width, [np.nan if v is None else v for v in vals],
+                          width=width, label=policy)
+            for b, v in zip(bars, vals):
+                ax.annotate("n/a" if v is None else f"{v:.2f}", (b.get_x() + b.get_width() / 2, 0 if v is None else v),
+                            ha="center", va="bottom", fontsize=6)
+        ax.set_xticks(x, task_names, fontsize=8)
+        ax.set_title(label, fontsize=9)
+        if ylim:
+            ax.set_ylim(*ylim)
+    axes[1].legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"Tasks, {data['episodes']} episodes per policy ({data['profile']} models)", fontsize=10)
+    fig.tight_layout()
+    path = out / FIGURE
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
 
 
 def _load(out: Path) -> dict:
@@ -97,22 +150,22 @@ def table(out) -> str:
     return "\n".join(lines)
 
 
-def readme_section(results_dir) -> str:
-    """The README's generated "Task results" section."""
-    return "\n".join([BEGIN, table(results_dir), END])
+def readme_section(results_dir, image_prefix: str = "results/tasks") -> str:
+    """The README's generated "Task results" section: the table and the figure."""
+    return "\n".join([BEGIN, table(results_dir), "", f"![tasks]({image_prefix}/{FIGURE})", END])
 
 
-def update_readme(readme, results_dir) -> bool:
+def update_readme(readme, results_dir, image_prefix: str = "results/tasks") -> bool:
     """Replace the README's task section; returns True when the file changed."""
     readme = Path(readme)
     text = readme.read_text()
     if BEGIN not in text or END not in text:
         raise ConfigError(f"{readme} has no {BEGIN} ... {END} section to fill")
     start, stop = text.index(BEGIN), text.index(END) + len(END)
-    new = text[:start] + readme_section(results_dir) + text[stop:]
+    new = text[:start] + readme_section(results_dir, image_prefix) + text[stop:]
     if new != text:
         readme.write_text(new)
     return new != text
 
 
-__all__ = ["BEGIN", "END", "EPISODES", "POLICIES", "readme_section", "run_tasks", "table", "update_readme"]
+__all__ = ["BEGIN", "END", "EPISODES", "FIGURE", "POLICIES", "figure", "readme_section", "report", "run_tasks", "table", "update_readme"]
