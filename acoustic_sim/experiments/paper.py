@@ -12,7 +12,6 @@ every key, in a few minutes, for the tests. Numbers from a quick run are not the
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -25,7 +24,7 @@ from acoustic_sim.auditory.melcnn import MelCNN, evaluate, heldout_rng
 from acoustic_sim.auditory.ssdenet import SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
-from acoustic_sim.experiments.report import write_report
+from acoustic_sim.experiments.report import write_json, write_report
 
 PAPER_CLAIMS = {
     "simulation": "SSDENet's mean error is below MUSIC's for every signal; MUSIC is near chance (about 90 deg) for sines and triangles.",
@@ -49,12 +48,6 @@ def _estimators(hrtf: HRTF, grid: DirectionGrid, bank: SSDENetBank) -> dict:
         "music": lambda spectra, noise: music.estimate(spectra)[0],
         "gcc-phat": lambda spectra, noise: gcc.estimate(spectra)[0],
     }
-
-
-def _write(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
-    tmp.replace(path)
 
 
 def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress: bool = True) -> dict:
@@ -108,19 +101,19 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     timings["room_s"] = time.perf_counter() - t
     loc = {"simulation": simulation, "room": room, "hrtf": ears.name, "profile": profile, "quick": quick,
            "directions": len(grid) if directions is None else len(directions), "paper_claim": PAPER_CLAIMS["simulation"]}
-    _write(out / "localization.json", loc)
+    write_json(out / "localization.json", loc)
 
     # 5. Detection.
     t = time.perf_counter()
     cnn = MelCNN.load_or_train(profile, progress=progress)
     det = evaluate(cnn, heldout_rng(profile), 300 if quick else 3000, progress=progress)
     det.update(profile=profile, paper_f1=PAPER_CLAIMS["detection_f1"])
-    _write(out / "detection.json", det)
+    write_json(out / "detection.json", det)
     timings["detection_s"] = time.perf_counter() - t
 
     timings = {k: round(v, 1) for k, v in timings.items()}
     timings["total_s"] = round(time.perf_counter() - t0, 1)
     summary = {"out": str(out), "profile": profile, "quick": quick, "seed": seed, "hrtf": ears.name, "timings": timings}
-    _write(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     write_report(out)
     return summary

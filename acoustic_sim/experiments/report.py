@@ -176,14 +176,28 @@ def readme_section(results_dir, image_prefix: str) -> str:
     return "\n".join([BEGIN, tables(results_dir), *[f"![{f[:-4]}]({image_prefix}/{f})\n" for f in figs], END])
 
 
-def update_readme(readme, results_dir, image_prefix: str = "results/paper") -> bool:
-    """Replace the README's generated section; returns True when the file changed."""
+def replace_section(readme, begin: str, end: str, section: str) -> bool:
+    """Replace the text from ``begin`` to ``end`` (markers included) in ``readme`` with
+    ``section``; returns True when the file changed."""
     readme = Path(readme)
     text = readme.read_text()
-    if BEGIN not in text or END not in text:
-        raise ConfigError(f"{readme} has no {BEGIN} ... {END} section to fill")
-    start, stop = text.index(BEGIN), text.index(END) + len(END)
-    new = text[:start] + readme_section(results_dir, image_prefix) + text[stop:]
+    if begin not in text or end not in text:
+        raise ConfigError(f"{readme} has no {begin} ... {end} section to fill")
+    start, stop = text.index(begin), text.index(end) + len(end)
+    new = text[:start] + section + text[stop:]
     if new != text:
         readme.write_text(new)
     return new != text
+
+
+def update_readme(readme, results_dir, image_prefix: str = "results/paper") -> bool:
+    """Replace the README's generated section; returns True when the file changed."""
+    return replace_section(readme, BEGIN, END, readme_section(results_dir, image_prefix))
+
+
+def write_json(path, data) -> None:
+    """Write ``data`` as JSON (no NaN) through a temporary file, so a reader never sees half a file."""
+    path = Path(path)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+    tmp.replace(path)

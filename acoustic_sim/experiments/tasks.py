@@ -45,6 +45,7 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
     quick : bool
         Few episodes with the fast models (tests).
     """
+    from acoustic_sim.experiments.report import write_json
     from acoustic_sim.runner import TASK_NAMES, run_episodes
 
     if quick:
@@ -61,9 +62,7 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
                          "success_rate": s["success_rate"], "false_release_rate": s["false_release_rate"],
                          "median_reaction_s": s["median_reaction_s"], "outcomes": s["outcomes"]})
     data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
-    tmp = out / "tasks.json.tmp"
-    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
-    tmp.replace(out / "tasks.json")
+    write_json(out / "tasks.json", data)
     report(out)
     return data
 
@@ -157,15 +156,9 @@ def readme_section(results_dir, image_prefix: str = "results/tasks") -> str:
 
 def update_readme(readme, results_dir, image_prefix: str = "results/tasks") -> bool:
     """Replace the README's task section; returns True when the file changed."""
-    readme = Path(readme)
-    text = readme.read_text()
-    if BEGIN not in text or END not in text:
-        raise ConfigError(f"{readme} has no {BEGIN} ... {END} section to fill")
-    start, stop = text.index(BEGIN), text.index(END) + len(END)
-    new = text[:start] + readme_section(results_dir, image_prefix) + text[stop:]
-    if new != text:
-        readme.write_text(new)
-    return new != text
+    from acoustic_sim.experiments.report import replace_section
+
+    return replace_section(readme, BEGIN, END, readme_section(results_dir, image_prefix))
 
 
 __all__ = ["BEGIN", "END", "EPISODES", "FIGURE", "POLICIES", "figure", "readme_section", "report", "run_tasks", "table", "update_readme"]
