@@ -309,6 +309,35 @@ def test_a_frame_counts_for_a_class_only_when_its_energy_lies_in_the_class_bins(
             AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, specificity=bad)
 
 
+def test_with_the_first_wavefront_an_onset_is_judged_by_the_energy_it_added(pipe, kemar):
+    """Precedence ``wavefront``: specificity asks where the energy that the onset added lies.
+    A tone in the narrow class's band (500-1000 Hz) starting over steady noise gives the class a
+    direction at specificity 0.3 (the noise was there before: it cancels); a broadband burst
+    starting over a steady tone in those bins gives none at 0.3, one at 0."""
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    bank = pipe.ssdenet
+    cnn = _DetectsSome(pipe.melcnn, bank.bins)
+    narrow = pipe.classes[2]
+    f = bin_frequencies()
+    cnn.characteristic_bins[narrow] = np.flatnonzero((f >= 500.0) & (f <= 1000.0))  # a band, as trained ones are
+    tone_hz = float(f[bank.bins[(f[bank.bins] > 600.0) & (f[bank.bins] < 900.0)][0]])
+    rng = np.random.default_rng(4)
+    n, start = int(0.6 * SAMPLE_RATE), int(0.3 * SAMPLE_RATE)
+    tone = 0.05 * np.sin(2 * np.pi * tone_hz * np.arange(n) / SAMPLE_RATE)
+    tone_starts = 0.002 * rng.standard_normal(n) + np.where(np.arange(n) >= start, tone, 0.0)
+    burst = tone.copy()
+    burst[start : start + 1323] += 0.2 * rng.standard_normal(1323)
+    got = {}
+    for name, x in (("tone starts", tone_starts), ("burst", burst)):
+        for specificity in (0.0, 0.3):
+            p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, specificity=specificity)
+            got[name, specificity] = [q.directions.get(narrow) for q in p.process(np.stack([x, 0.8 * x]))
+                                      if q.time_s > start / SAMPLE_RATE]
+    assert any(d is not None for d in got["tone starts", 0.3])
+    assert any(d is not None for d in got["burst", 0.0]) and all(d is None for d in got["burst", 0.3])
+
+
 def test_room_experiment_repeats_each_angle(kemar):
     """``trials`` renders every angle that many times (new noise, level and background each);
     per-angle errors are the mean over them, accuracies count every trial."""

@@ -61,6 +61,44 @@ def test_take_returns_the_tapered_window_of_the_strongest_ready_onset():
     assert w.sample == 0 and w.pending == []
 
 
+def test_added_energy_is_the_new_sound_s_not_the_steady_one():
+    """take_added: the power that an onset added, the ``added_ms`` after it minus the same
+    before it: a 3 kHz tone starting over steady broadband noise adds its energy at 3 kHz;
+    the noise, there before and after, cancels. It comes once both segments are complete,
+    whatever the blocks, and only for the onset that take_onset handed over."""
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    rng = np.random.default_rng(3)
+    n, start = 30000, 12000
+    x = 1e-3 * rng.standard_normal((2, n))
+    t = np.arange(n - start) / 44100
+    x[:, start:] += 0.05 * np.sin(2 * np.pi * 3000.0 * t)
+    results = []
+    for sizes in ([706], [97, 3000]):
+        w = FirstWavefront(added_ms=10.0)
+        got, i, k = [], 0, 0
+        while i < n:
+            m = sizes[k % len(sizes)]
+            w.push(x[:, i : i + m])
+            i, k = i + m, k + 1
+            end = min(i, n)
+            taken = w.take_onset(end)
+            if taken is not None:
+                got.append(("onset", taken[0]))
+            got += [("added", s, a) for s, a in w.take_added(end)]
+        results.append(got)
+    got = results[0]
+    assert [g[0] for g in got] == ["onset", "added"] and got[0][1] == got[1][1]
+    s, added = got[1][1], got[1][2]
+    assert abs(s - start) <= 22 and added.shape == (1025,) and np.all(added >= 0)
+    f = bin_frequencies()
+    near = np.abs(f - 3000.0) <= 250.0
+    assert added[near].sum() >= 0.95 * added.sum()  # the noise's own power cancelled
+    assert [g[:2] for g in results[1]] == [g[:2] for g in got]
+    np.testing.assert_allclose(results[1][1][2], added, rtol=1e-9)
+    assert FirstWavefront().take_added(n) == []  # off by default
+
+
 def test_steady_noise_gives_one_onset():
     rng = np.random.default_rng(2)
     x = np.concatenate([1e-4 * rng.standard_normal((2, 8000)), 1e-2 * rng.standard_normal((2, 44100))], axis=1)
@@ -79,7 +117,8 @@ def test_row_medians_are_numpys_medians(width):
 def test_bad_parameters_are_errors():
     for kwargs, word in (({"ratio": 1.0}, "ratio"), ({"highpass_hz": 30000.0}, "highpass"),
                          ({"baseline_ms": (5.0, 2.0)}, "baseline"), ({"window_ms": (0.0, 0.0)}, "window"),
-                         ({"window_ms": (1.0, 60.0)}, "window")):
+                         ({"window_ms": (1.0, 60.0)}, "window"), ({"added_ms": 0.0}, "added_ms"),
+                         ({"added_ms": 50.0}, "added_ms")):
         with pytest.raises(ConfigError, match=word):
             FirstWavefront(**kwargs)
 

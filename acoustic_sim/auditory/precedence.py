@@ -31,6 +31,16 @@ power-ratio gate -> first wavefront: ParkingBrake success 0.40 -> 0.87 (paper mo
 false releases 0.20 -> 0.10) and 0.53 -> 0.67 (fast); ReverseAlarm 0.37 -> 0.70 (paper)
 and 0.47 -> 0.60 (fast); CallResponse (fast, 20 episodes) stays at 1.0.
 
+Which sound an onset is (``added_ms``): the 1.75 ms window spreads a tone over a
+kilohertz (its spectrum is the taper's transform around the tone), and it holds whatever
+else is sounding. The pipeline's attribution rule (``specificity``) asks instead where the
+energy that the onset *added* lies: the power spectrum of the ``added_ms`` after the
+onset minus that of the ``added_ms`` before it (Hann-windowed, clipped at 0, both ears
+summed; :meth:`FirstWavefront.take_added`). Ten milliseconds hold eleven periods of the
+reverse alarm's 1.1 kHz, so its added energy stays in its bins, and the sounds already
+playing cancel. The onset's wavefront is handed over as before; its added energy once that
+segment is complete (at most a frame later).
+
 Hand-written because no library in the project detects onsets on a streaming sample
 clock (scipy has the filters, which are used).
 """
@@ -70,11 +80,15 @@ class FirstWavefront:
         ``window_ms[1]`` after its start.
     n_fft : int
         FFT size of the window's spectrum (the front end's, so the bins agree).
+    added_ms : float, optional
+        Length (ms) of the segments before and after an onset whose power difference is the
+        energy it added (:meth:`take_added`, module docstring); None (default): not kept.
     """
 
     def __init__(self, *, sample_rate: int = SAMPLE_RATE, highpass_hz: float = 1000.0, block_ms: float = 0.5,
                  baseline_ms: tuple[float, float] = (1.0, 10.0), ratio: float = 8.0, refractory_ms: float = 15.0,
-                 window_ms: tuple[float, float] = (0.25, 1.5), n_fft: int = N_FFT) -> None:
+                 window_ms: tuple[float, float] = (0.25, 1.5), n_fft: int = N_FFT,
+                 added_ms: float | None = None) -> None:
         if not 0.0 < highpass_hz < sample_rate / 2:
             raise ConfigError(f"highpass_hz must be in (0, {sample_rate / 2}), got {highpass_hz}")
         if not (np.isfinite(ratio) and ratio > 1.0):
@@ -96,6 +110,14 @@ class FirstWavefront:
         if self.pre + self.post > n_fft:
             raise ConfigError(f"window_ms {window_ms} is longer than n_fft ({n_fft} samples)")
         self.n_fft = int(n_fft)
+        self.added = None
+        if added_ms is not None:
+            if not (np.isfinite(added_ms) and added_ms > 0):
+                raise ConfigError(f"added_ms must be > 0 ms, got {added_ms}")
+            self.added = round(added_ms * 1e-3 * sample_rate)
+            if self.added > n_fft:
+                raise ConfigError(f"added_ms {added_ms} is longer than n_fft ({n_fft} samples)")
+            self._hann = sp_signal.windows.hann(self.added, sym=False)
         self.min_hz = 2.0 * sample_rate / (self.pre + self.post)
         """Lowest frequency (Hz) with two periods in the window; below it the window's
         spectrum is the taper's, not the sound's (the pipeline uses the frame there)."""
@@ -116,6 +138,7 @@ class FirstWavefront:
         self._audio = np.zeros((2, 0))  # the newest raw samples
         self._audio_start = 0  # sample index of self._audio[:, 0]
         self.pending: list[tuple[int, float]] = []  # (onset sample, block energy), windows not yet taken
+        self.awaiting: list[int] = []  # taken onsets whose added energy is not yet handed over
 
     def push(self, block: np.ndarray) -> None:
         """Append a (2, n) block of ear samples (the pipeline's, already checked)."""
@@ -145,25 +168,54 @@ class FirstWavefront:
             self._blocks += whole
         audio = np.concatenate([self._audio, x], axis=1)
         self.sample += n
-        oldest = min([s - self.pre for s, _ in self.pending] + [self.sample - self._keep])
+        oldest = min([s - self.pre for s, _ in self.pending] + [s - self.added for s in self.awaiting]
+                     + [self.sample - self._keep])
         cut = max(0, oldest - self._audio_start)
         self._audio = audio[:, cut:]
         self._audio_start += cut
 
     def take(self, end_sample: int) -> np.ndarray | None:
         """The spectrum (2, n_fft // 2 + 1) of the strongest onset whose window ends by
-        ``end_sample``, or None; every onset up to there is consumed."""
+        ``end_sample``, or None; every onset up to there is consumed (:meth:`take_onset`)."""
+        taken = self.take_onset(end_sample)
+        return None if taken is None else taken[1]
+
+    def take_onset(self, end_sample: int) -> tuple[int, np.ndarray] | None:
+        """(onset sample, spectrum (2, n_fft // 2 + 1)) of the strongest onset whose window
+        ends by ``end_sample``, or None; every onset up to there is consumed, and with
+        ``added_ms`` the one returned awaits :meth:`take_added`."""
         ready = [(s, e) for s, e in self.pending if s + self.post <= end_sample]
         if not ready:
             return None
         self.pending = [(s, e) for s, e in self.pending if s + self.post > end_sample]
         s, _ = max(ready, key=lambda item: item[1])
-        a = s - self.pre - self._audio_start
-        seg = np.zeros((2, self.pre + self.post))
+        if self.added is not None:
+            self.awaiting.append(s)
+        return s, np.fft.rfft(self._segment(s - self.pre, self.pre + self.post) * self.taper, n=self.n_fft, axis=-1)
+
+    def take_added(self, end_sample: int) -> list[tuple[int, np.ndarray]]:
+        """(onset sample, added power (n_fft // 2 + 1,)) of each taken onset whose ``added_ms``
+        after it end by ``end_sample``: the power spectrum of those samples minus that of the
+        ``added_ms`` before the onset (Hann window, both ears summed, clipped at 0)."""
+        if self.added is None:
+            return []
+        out = []
+        for s in [s for s in self.awaiting if s + self.added <= end_sample]:
+            after = np.fft.rfft(self._segment(s, self.added) * self._hann, n=self.n_fft, axis=-1)
+            before = np.fft.rfft(self._segment(s - self.added, self.added) * self._hann, n=self.n_fft, axis=-1)
+            power = (after.real**2 + after.imag**2).sum(axis=0) - (before.real**2 + before.imag**2).sum(axis=0)
+            out.append((s, np.maximum(power, 0.0)))
+        self.awaiting = [s for s in self.awaiting if s + self.added > end_sample]
+        return out
+
+    def _segment(self, start: int, n: int) -> np.ndarray:
+        """Raw samples ``start .. start + n`` (2, n); zeros before the first sample."""
+        a = start - self._audio_start
+        seg = np.zeros((2, n))
         lo = max(a, 0)
-        part = self._audio[:, lo : a + self.pre + self.post]
+        part = self._audio[:, lo : a + n]
         seg[:, lo - a : lo - a + part.shape[1]] = part
-        return np.fft.rfft(seg * self.taper, n=self.n_fft, axis=-1)
+        return seg
 
 
 def _row_medians(w: np.ndarray) -> np.ndarray:
