@@ -163,12 +163,7 @@ class ScriptedReverseAlarm(LeverPolicy):
     models, kemar): head straight, front sector 45 deg: success 0.57, false releases 0.12;
     head straight, mirror accepted, 15 deg: 0.73, 0.02; head turned 45 deg right, mirror
     accepted, 20 deg: 0.82, 0.03; the same with the cabin's specificity rule
-    (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0. The models as retrained
-    from scratch in session 8 (the MelCNN's pooling was rewritten in session 7, same
-    outputs for given weights, but training takes another path) give 0.73 and 0.022 with
-    the same settings, 0.70 and 0.033 with the specificity judged on the energy an onset
-    added: the lates (21 of 90) are mostly the first beep placed elsewhere while another
-    vehicle's beeper of the same class sounds, and the next beep 0.8-1.1 s later.
+    (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0.
     """
 
     side = "left"

@@ -79,9 +79,9 @@ class ParkingBrakeEnv(CabinLeverTask):
     side = "right"
     specificity = 0.0
     """Off: the ratchet's bins (205 of the paper bank's band) take any click, so the rule
-    tells nothing here (paper models, 90 episodes: 0.92 success, 0.02 false releases with it
-    and without), and judging an onset by the energy it added waits up to a frame (fast
-    models, 20 episodes: 0.80 without, 0.70 with)."""
+    tells nothing here (paper models, 90 episodes: 0.92 success, 0.02 false releases with
+    the first-wavefront share and without the rule; fast models, 20 episodes: 0.65 and 0.15
+    either way), and judging an onset by the energy it added waits up to a frame."""
     default_max_episode_s = 10.0
     relay_probability = 0.6
     key_probability = 0.4

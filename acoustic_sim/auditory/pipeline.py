@@ -62,10 +62,10 @@ that of the 10 ms before, :data:`ADDED_MS`, :meth:`FirstWavefront.take_added
 <acoustic_sim.auditory.precedence.FirstWavefront.take_added>`; without precedence, the
 frame's energy); the frame counts once that is known, at most a frame after its onset. The
 cabin's ReverseAlarm uses 0.2 (``tasks.cabin.CabinLeverTask.specificity``; default 0,
-off). Measured over 20 ReverseAlarm episodes (fast models, 36 alarm bins): the onsets of
-the horn put 0.03-0.10 of their added energy in the alarm's bins, the radio's 0.05-0.07,
-the alarm's first beeps (with the gearshift's slide) 0.48-0.91 and the other vehicle's
-beeps 0.49-0.86. The first design took the share from the first wavefront's 1.75 ms
+off). Measured over 20 ReverseAlarm episodes (fast models): the onsets of the horn put
+0.03-0.15 of their added energy in the alarm's bins, the radio's 0.04-0.14, the alarm's
+first beeps (with the gearshift's slide) 0.39-0.91 and the other vehicle's beeps
+0.35-0.87. The first design took the share from the first wavefront's 1.75 ms
 window, which spreads a tone over a kilohertz and holds whatever else sounds: the alarm's
 onsets gave 0.24-0.59 there (paper models), the horn's 0.06-0.26, and an alarm onset with
 the gearshift's slide 0.15 (a late release). The paper's own rule (:meth:`localize`) has
