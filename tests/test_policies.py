@@ -26,8 +26,8 @@ BLIND_EPISODES = 12  # enough to show that the distractors bite
 LOCALIZATION = (
     "auditory pipeline: over these 20 episodes the fast models reach 0.85 success, 0.05 false releases "
     "(ReverseAlarm) and 0.65, 0.15 (ParkingBrake), not 0.9 with no false release: the fast SSDENet places the "
-    "alarm from 2-3 bins, in the traced failures 26-32 deg off, outside the 20 deg front sector, and the next beep comes 0.8-1.1 s later; another "
-    "vehicle's beeper of the same class overlapping the alarm's first beep; the fast MelCNN (F1 0.58) hears the "
+    "alarm from 2-3 bins, in the traced failures 26-32 deg off, outside the 20 deg front sector, and the next "
+    "beep comes 0.8-1.1 s later; another vehicle's beeper of the same class overlapping the alarm's first beep; the fast MelCNN (F1 0.58) hears the "
     "radio's speech as the ratchet, and the relay's clicks are the ratchet's class (issue 5 report; paper models: "
     "results/tasks)"
 )

@@ -113,7 +113,8 @@ SPECIFICITY_BAND_HZ = (300.0, 12000.0)
 
 ADDED_MS = 10.0
 """With precedence and ``specificity``: the segments (ms) before and after an onset whose power
-difference is the energy the onset added (:attr:`~acoustic_sim.auditory.precedence.Onset.added`)."""
+difference is the energy the onset added
+(:meth:`~acoustic_sim.auditory.precedence.FirstWavefront.take_added`)."""
 
 PRECEDENCE = ("wavefront", "ratio", None)
 """Precedence modes of the streaming pipeline (module docstring); the first is the default."""
