@@ -283,6 +283,28 @@ def test_a_frame_counts_for_a_class_only_when_it_covers_its_bins(pipe, kemar):
             AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, coverage=bad)
 
 
+def test_a_tone_counts_only_at_its_own_bin_not_at_its_sidelobes(pipe, kemar):
+    """A loud tone at one bank bin: with the leakage rule (the default) only that network
+    votes; with the paper's rule alone its sidelobes make the neighbouring networks vote too."""
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    bank = pipe.ssdenet
+    b = int(bank.bins[4])
+    t = np.arange(int(0.3 * SAMPLE_RATE)) / SAMPLE_RATE
+    x = 0.3 * np.sin(2 * np.pi * float(bin_frequencies()[b] + 0.4 * bin_frequencies()[1]) * t)  # off the bin: sidelobes
+    audio = np.stack([x, 0.8 * x])
+    n_bins = {}
+    for leakage in (0.0, 10.0):
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=pipe.melcnn, leakage=leakage)
+        # Per frame (window=1), after the frames that hold the tone's broadband switch-on.
+        n_bins[leakage] = [est.n_bins for _, est in p.localize(audio, window=1)[0][3:]]
+    assert pipe.leakage == 10.0 and n_bins[10.0] == [1] * len(n_bins[10.0])  # the tone's own network
+    assert min(n_bins[0.0]) >= 8  # sidelobes over most of the 16-bin bank
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ConfigError, match="leakage"):
+            AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=pipe.melcnn, leakage=bad)
+
+
 def test_a_frame_counts_for_a_class_only_when_its_energy_lies_in_the_class_bins(pipe, kemar):
     """Broadband noise lights up a narrow class's bins but puts a tiny share of its energy
     there: with specificity 0.3 the class gets no direction from it, with 0 it does; a sine

@@ -16,7 +16,7 @@ from acoustic_sim.auditory import checkpoint as ckpt
 from acoustic_sim.auditory import ssdenet as S
 from acoustic_sim.auditory import ssdenet_training as T
 from acoustic_sim.auditory.features import ild_ipd
-from acoustic_sim.auditory.frontend import N_BINS, analyze
+from acoustic_sim.auditory.frontend import N_BINS, N_FFT, analyze, leakage_envelope, window
 from acoustic_sim.directions import DirectionGrid, angular_error_deg
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import sph_to_vec
@@ -179,6 +179,58 @@ def test_valid_bins_threshold_and_class_bins():
     np.testing.assert_allclose(S.noise_power_spectrum(spectra)[0, 100], 1.0)
 
 
+def _tone_frames(freqs_hz, levels_db, seconds=0.2, seed=0):
+    """Spectra (K, 2, 1025) of tones (both ears alike) 60 dB over white sensor noise, and its power."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * 44100)) / 44100
+    x = sum(10 ** (db / 20) * np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3)) for f, db in zip(freqs_hz, levels_db))
+    sigma = 1e-3 * np.sqrt(np.mean(x**2))
+    audio = np.stack([x, x]) + sigma * rng.standard_normal((2, t.size))
+    noise = np.full((2, N_BINS), sigma**2 * float(np.sum(window() ** 2)))
+    return analyze(audio).spectra[3:], noise
+
+
+def test_leakage_envelope_of_the_hamming_window():
+    env = leakage_envelope()
+    assert env.shape == (N_BINS,) and np.all(env[:3] == 0.0) and np.all(np.diff(env[3:]) <= 0)
+    db = 10 * np.log10(env[[3, 23, 100, 1000]])
+    np.testing.assert_allclose(db, [-40.9, -51.9, -64.7, -81.1], atol=0.3)  # Hamming: -43 dB sidelobes, 6 dB/octave
+    # The envelope bounds the true leakage of a component anywhere between two bins.
+    for frac in (0.0, 0.25, 0.5):
+        n = np.arange(N_FFT)
+        spec = np.abs(np.fft.fft(window() * np.exp(2j * np.pi * (200 + frac) * n / N_FFT))[:N_BINS]) ** 2
+        peak = spec.argmax()
+        m = np.abs(np.arange(N_BINS) - peak)
+        assert np.all(spec[m > 2] <= env[m[m > 2]] * spec[peak] * (1 + 1e-9))
+    with pytest.raises(ConfigError, match="main_lobe"):
+        leakage_envelope(main_lobe=-1)
+    with pytest.raises(ConfigError, match="oversample"):
+        leakage_envelope(oversample=0)
+
+
+def test_leakage_rule_keeps_a_tone_s_own_bins_and_drops_its_sidelobes():
+    spectra, noise = _tone_frames([1000.0], [0.0])
+    tone = int(round(1000 / (44100 / N_FFT)))
+    paper = S.valid_bins(spectra, noise)
+    assert paper[:, tone - 23].all() and paper[:, tone + 23].all()  # 500 Hz away, the sidelobes pass the paper's test
+    valid = S.valid_bins(spectra, noise, leakage=10.0)
+    on = np.flatnonzero(valid.any(axis=0))
+    assert on.min() >= tone - 2 and on.max() <= tone + 2 and valid[:, tone].all()  # the main lobe only
+    # A second tone 40 dB weaker, 2 kHz away, is its own component: its bin stays valid.
+    spectra, noise = _tone_frames([1000.0, 3000.0], [0.0, -40.0])
+    second = int(round(3000 / (44100 / N_FFT)))
+    assert S.valid_bins(spectra, noise, leakage=10.0)[:, second].all()
+    # Broadband noise has no dominant component: (almost) every bin stays valid.
+    rng = np.random.default_rng(1)
+    audio = rng.standard_normal((2, 8820))
+    spectra = analyze(audio).spectra[3:]
+    both = S.valid_bins(spectra, 1e-6, leakage=10.0)
+    assert both.mean() >= 0.99 and np.array_equal(both, both & S.valid_bins(spectra, 1e-6))
+    # class_bins restricts the (costly) test to those bins, with the same answer there.
+    bins = [20, 46, 300, 700]
+    np.testing.assert_array_equal(S.valid_bins(spectra, 1e-6, class_bins=bins, leakage=10.0)[:, bins], both[:, bins])
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"noise_power": np.ones(7)}, "noise_power must broadcast"),
     ({"noise_power": -1.0}, "finite and >= 0"),
@@ -186,6 +238,8 @@ def test_valid_bins_threshold_and_class_bins():
     ({"noise_power": 0.0, "class_bins": np.ones(5, bool)}, "class_bins mask"),
     ({"noise_power": 0.0, "class_bins": [2000]}, "class_bins indices"),
     ({"noise_power": 0.0, "class_bins": [0.5]}, "bin indices"),
+    ({"noise_power": 0.0, "leakage": -1.0}, "leakage"),
+    ({"noise_power": 0.0, "leakage": float("nan")}, "leakage"),
 ])
 def test_valid_bins_errors(kwargs, match):
     with pytest.raises(ConfigError, match=match):

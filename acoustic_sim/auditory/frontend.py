@@ -14,6 +14,7 @@ Spectra are not rescaled; features downstream are level-invariant or normalised.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,54 @@ def frequency_to_bin(freq_hz, n_fft: int = N_FFT, sample_rate: int = SAMPLE_RATE
 def window(n_fft: int = N_FFT) -> np.ndarray:
     """The Hamming window (periodic, as for spectral analysis), float64 (n_fft,)."""
     return sp_signal.get_window("hamming", n_fft, fftbins=True)
+
+
+def leakage_envelope(n_fft: int = N_FFT, *, main_lobe: int = 2, oversample: int = 64) -> np.ndarray:
+    """How much power the window's sidelobes can put ``m`` bins away from a component's peak bin.
+
+    Entry ``m`` (0 .. n_fft // 2) is the largest power ratio, over every position of a pure
+    tone between bins, of the window's response ``m`` bins from the tone's strongest bin to
+    that strongest bin; made non-increasing in ``m`` (an envelope), and 0 within
+    ``main_lobe`` bins (the component's own main lobe is not leakage). For the Hamming window:
+    -41 dB 3-5 bins away, -52 dB 23 bins away (500 Hz from a 1 kHz tone), -65 dB at 100
+    bins, -81 dB at 1000 (the worst case includes the 1.75 dB scalloping loss).
+
+    Parameters
+    ----------
+    n_fft : int
+        Window length and FFT points.
+    main_lobe : int
+        Half-width of the main lobe in bins (Hamming: 2), >= 0.
+    oversample : int
+        Zero-padding factor of the window's spectrum (the resolution of tone positions), >= 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 (n_fft // 2 + 1,), power ratios in [0, 1].
+    """
+    if not (isinstance(main_lobe, (int, np.integer)) and main_lobe >= 0):
+        raise ConfigError(f"main_lobe must be an integer >= 0, got {main_lobe!r}")
+    if not (isinstance(oversample, (int, np.integer)) and oversample >= 1):
+        raise ConfigError(f"oversample must be an integer >= 1, got {oversample!r}")
+    return _leakage_envelope(int(n_fft), int(main_lobe), int(oversample)).copy()
+
+
+@functools.lru_cache(maxsize=4)
+def _leakage_envelope(n_fft: int, main_lobe: int, oversample: int) -> np.ndarray:
+    response = np.abs(np.fft.rfft(window(n_fft), n_fft * oversample)) ** 2  # at offsets of 1/oversample bin
+    n = n_fft // 2 + 1
+    # A tone delta bins (|delta| <= 1/2) above its strongest bin puts W(m - delta) at m bins,
+    # and W(delta) at the strongest bin: the worst case over delta.
+    half = oversample // 2
+    peak_min = response[: half + 1].min()
+    padded = np.concatenate([response, np.zeros(half + 1)])
+    offsets = np.arange(n)[:, None] * oversample + np.arange(-half, half + 1)[None, :]
+    worst = padded[np.abs(offsets)].max(axis=1) / peak_min
+    env = np.maximum.accumulate(worst[::-1])[::-1]  # non-increasing: an envelope
+    env[: main_lobe + 1] = 0.0
+    env.setflags(write=False)
+    return env
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ Per ear frame (62.5 Hz on the sample clock)::
     p_l, p_r   = MelCNN(log-mel of the last 25 frames, per ear)    melcnn.MelCNN
     p          = (V_l p_l + V_r p_r) / (V_l + V_r)                 melcnn.fuse
     detected   = classes with p >= threshold
-    valid_c    = bins with power > factor x noise, within the characteristic bins of c
+    valid_c    = bins with power > factor x noise and > leakage x the window's leakage of
+                 any other bin, within the characteristic bins of c
     P_c(d)     = sum over valid_c of SSDENet_i(ILD, IPD),          ssdenet.SSDENetBank
                  over the last ``direction_frames`` frames
     estimate_c = argmax_d P_c(d)
@@ -91,7 +92,7 @@ from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_fre
 from acoustic_sim.auditory.melcnn import MelCNN, fuse_unchecked
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.auditory.precedence import FirstWavefront
-from acoustic_sim.auditory.ssdenet import SSDENetBank, noise_power_spectrum, valid_bins
+from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, noise_power_spectrum, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, sph_to_vec, vec_to_sph
@@ -159,6 +160,11 @@ class AuditoryPipeline:
         Detection threshold on the fused class probability, 0..1 (default 0.5).
     factor : float
         Validity factor over the noise power (the paper: 10).
+    leakage : float
+        Validity factor over the window's sidelobe leakage from other bins (default
+        :data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`, 10; 0: off, the paper's rule alone):
+        the neighbours of a strong tone carry its interaural cues, not their own
+        (:func:`~acoustic_sim.auditory.ssdenet.valid_bins`).
     direction_frames : int
         Frames whose existence maps a class's direction sums (default
         :data:`DIRECTION_FRAMES`, 0.19 s; 1 = the current frame only).
@@ -187,7 +193,8 @@ class AuditoryPipeline:
     def __init__(self, *, hrtf: HRTF, grid: DirectionGrid, ssdenet: SSDENetBank, melcnn: MelCNN, noise_power=None,
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
-                 onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0) -> None:
+                 onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0,
+                 leakage: float = LEAKAGE) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -197,6 +204,8 @@ class AuditoryPipeline:
             raise ConfigError(f"threshold must be in (0, 1), got {threshold}")
         if not (np.isfinite(factor) and factor > 0):
             raise ConfigError(f"factor must be > 0, got {factor}")
+        if not (leakage is not None and np.isfinite(leakage) and leakage >= 0):
+            raise ConfigError(f"leakage must be >= 0, got {leakage}")
         direction_frames = DIRECTION_FRAMES if direction_frames is None else direction_frames
         if precedence not in PRECEDENCE:
             raise ConfigError(f"precedence must be one of {PRECEDENCE}, got {precedence!r}")
@@ -215,8 +224,11 @@ class AuditoryPipeline:
         self.classes = tuple(melcnn.classes)
         self.threshold = float(threshold)
         self.factor = float(factor)
+        self.leakage = float(leakage)
         self.set_noise_power(microphone_noise_power() if noise_power is None else noise_power)
         bins = np.asarray(ssdenet.bins)
+        self._bank_mask = np.zeros(N_BINS, bool)  # the bank's bins: the only ones whose validity matters
+        self._bank_mask[bins] = True
         # Class masks restricted to the bank's bins: (C, n_bank) bool.
         self._class_masks = np.zeros((len(self.classes), bins.size), bool)
         for c, name in enumerate(self.classes):
@@ -262,7 +274,7 @@ class AuditoryPipeline:
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
              precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = 0.0,
-             specificity: float = 0.0, progress: bool = True) -> AuditoryPipeline:
+             specificity: float = 0.0, leakage: float = LEAKAGE, progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -280,7 +292,7 @@ class AuditoryPipeline:
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
                    direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
-                   coverage=coverage, specificity=specificity)
+                   coverage=coverage, specificity=specificity, leakage=leakage)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -327,12 +339,12 @@ class AuditoryPipeline:
                 valid = np.zeros(bins.size, bool)
                 cues = x[:, bins]
             else:
-                valid = valid_bins(x, self.noise_power, self.factor)[bins]
+                valid = self._valid(x)[bins]
                 # The window spans too few periods of the lowest bins to carry their
                 # phase: there the frame's own spectra give the features.
                 cues = np.where(self._short_ok[None, :], onset[:, bins], x[:, bins])
         else:
-            valid = valid_bins(x, self.noise_power, self.factor)[bins]
+            valid = self._valid(x)[bins]
             cues = x[:, bins]
             if self.precedence == "ratio":
                 power = (cues.real**2 + cues.imag**2).sum(axis=0)
@@ -372,6 +384,10 @@ class AuditoryPipeline:
             directions = self._directions([self.classes.index(c) for c in detected])
         return Percept(frame=k, time_s=t, classes=self.classes, probabilities=probs, detected=detected,
                        directions=directions, mel=patch[:, -1, :].copy(), volume=volume)
+
+    def _valid(self, x: np.ndarray) -> np.ndarray:
+        """Valid bins (..., 1025) of spectra (..., 2, 1025): the bank's bins that pass the noise and leakage tests."""
+        return valid_bins(x, self.noise_power, self.factor, class_bins=self._bank_mask, leakage=self.leakage)
 
     def _shares(self, power: np.ndarray) -> np.ndarray:
         """Per class, the share of ``power`` (per bin, (1025,)) within the specificity band that
@@ -453,7 +469,7 @@ class AuditoryPipeline:
             raise ConfigError(f"the recording is shorter than one ear frame ({int(np.ceil(SAMPLE_RATE / 62.5))} samples)")
         x = frames.spectra
         if method == "ssdenet":
-            valid = valid_bins(x, self.noise_power, self.factor)
+            valid = self._valid(x)
             if sound is not None:
                 if sound not in self.classes:
                     raise ConfigError(f"unknown sound class {sound!r}; valid: {', '.join(self.classes)}")

@@ -21,7 +21,7 @@ from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.measure import measure_hrtf
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.melcnn import MelCNN, evaluate, heldout_rng
-from acoustic_sim.auditory.ssdenet import SSDENetBank, valid_bins
+from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
 from acoustic_sim.experiments.report import write_json, write_report
@@ -38,7 +38,7 @@ def _estimators(hrtf: HRTF, grid: DirectionGrid, bank: SSDENetBank) -> dict:
     gcc = GccPhat(hrtf)
 
     def ssdenet(spectra, noise):
-        est = bank.estimate(spectra, valid_bins(spectra, noise))
+        est = bank.estimate(spectra, valid_bins(spectra, noise, class_bins=bank.bins, leakage=LEAKAGE))
         # No valid bin (the source is below the noise everywhere): no information, so the
         # estimate is straight ahead, as for the baselines on silence.
         return grid.vectors[grid.nearest(np.array([1.0, 0.0, 0.0]))] if est is None else est.vector
