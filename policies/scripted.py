@@ -85,6 +85,12 @@ def azimuth_deg(v) -> float:
     return math.degrees(math.atan2(float(v[1]), float(v[0])))
 
 
+def lateral_deg(v) -> float:
+    """Lateral angle (deg, + left) of a head-frame vector: its angle to the median plane."""
+    v = np.asarray(v, float)
+    return math.degrees(math.asin(float(np.clip(v[1] / max(float(np.linalg.norm(v)), 1e-12), -1.0, 1.0))))
+
+
 def heard(obs, label: str, threshold: float, min_conf: float) -> tuple[bool, np.ndarray | None]:
     """Whether ``label`` is heard in this frame, and its direction when it has a confident estimate."""
     i = CLASSES.index(label)
@@ -212,8 +218,13 @@ POLICY_CLASSES = {"reverse-alarm": ScriptedReverseAlarm}
 class ScriptedParkingBrake(ScriptedReverseAlarm):
     """Pull the brake lever until the ratchet is heard from the right, then let go.
 
-    ``right_deg``: the accepted azimuths, from -``right_deg[1]`` to -``right_deg[0]``
-    (the ratchet's pawl is at about -110 deg, low).
+    "From the right" is a lateral angle (the angle between the direction and the median
+    plane, toward the right ear) of at least ``lateral_deg``: the ratchet's pawl is at about
+    -110 deg azimuth, low (a lateral angle of about 55 deg). The lateral angle is what the
+    interaural cues fix; the position on the cone of confusion (front, back, up, down) is
+    what they get wrong. An azimuth sector (-165 to -35 deg, the previous rule) took the
+    radio's speech in front at -17 deg, placed at its front-back mirror image -164 deg
+    (lateral 16 deg), for the ratchet (fast models, seed 115: an early release).
     """
 
     side = "right"
@@ -223,13 +234,12 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     label = "ratchet"
     head_yaw_deg = 0.0  # the ratchet is far off the median plane: no front-back question
     mirror = False
-    right_deg = (35.0, 165.0)
+    lateral_deg = 30.0
     window = 6
     votes = 2
 
     def accept(self, direction: np.ndarray, obs) -> bool:
-        az = azimuth_deg(direction)
-        return -self.right_deg[1] <= az <= -self.right_deg[0]
+        return lateral_deg(direction) <= -self.lateral_deg
 
 
 POLICY_CLASSES["parking-brake"] = ScriptedParkingBrake

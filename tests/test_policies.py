@@ -3,9 +3,11 @@
 ``oracle`` (ground truth) must meet every target: that checks the tasks, their outcomes and
 their timing. ``scripted`` (the paper's behaviours, from the percepts) and ``blind`` (classes
 without directions) depend on the auditory pipeline: a probe first checks that the ``fast``
-models detect the task sounds at all; the targets that need reliable *directions* in the
-car cabin are marked ``xfail`` (non-strict) with the measured reason (see the issue 5
-report), so they show as XPASS once the pipeline delivers them.
+models detect the task sounds at all. ParkingBrake's targets are marked ``xfail``
+(non-strict) with the measured reason (see the issue 5 report), so they show as XPASS once
+the pipeline delivers them. ReverseAlarm meets its targets with the fast models since the
+validity rule drops a tone's sidelobes (:data:`acoustic_sim.auditory.ssdenet.LEAKAGE`;
+0.85 -> 0.90 success, 0.05 -> 0 false releases over these 20 episodes).
 """
 
 import json
@@ -23,13 +25,12 @@ from policies import POLICIES, make_policy
 
 EPISODES = 20
 BLIND_EPISODES = 12  # enough to show that the distractors bite
-LOCALIZATION = (
-    "auditory pipeline: over these 20 episodes the fast models reach 0.85 success, 0.05 false releases "
-    "(ReverseAlarm) and 0.65, 0.15 (ParkingBrake), not 0.9 with no false release: the fast SSDENet places the "
-    "alarm from 2-3 bins, in the traced failures 26-32 deg off, outside the 20 deg front sector, and the next "
-    "beep comes 0.8-1.1 s later; another vehicle's beeper of the same class overlapping the alarm's first beep; the fast MelCNN (F1 0.58) hears the "
-    "radio's speech as the ratchet, and the relay's clicks are the ratchet's class (issue 5 report; paper models: "
-    "results/tasks)"
+PARKING_BRAKE = (
+    "auditory pipeline: over these 20 episodes the fast models reach 0.70 success and 0.05 false releases in "
+    "ParkingBrake, not 0.9 with none: the fast MelCNN (F1 0.58) misses the first tooth's click under the key turn "
+    "(key_turning 0.87, ratchet 0.49, seed 103) or the radio's speech (seed 101), and the next tooth is late; it "
+    "hears the radio's speech onset while the relay ticks as the ratchet, placed at -112 deg (seed 112). Larger "
+    "fast MelCNNs (3000 windows; 8 or 12 filters, F1 0.70 / 0.75) gave 0.60 (issue 5 report; paper models: results/tasks)"
 )
 
 
@@ -116,7 +117,6 @@ def test_scripted_lets_go_falsely_less_often_than_blind(envs, hearing, task):
     assert scripted["false_release_rate"] < blind["false_release_rate"], (scripted, blind)
 
 
-@pytest.mark.xfail(reason=LOCALIZATION, strict=False)
 def test_scripted_reverse_alarm_targets(envs, hearing):
     need(hearing, "reverse_alarm")
     summary, _ = episodes(envs, "reverse-alarm", "scripted")
@@ -124,7 +124,7 @@ def test_scripted_reverse_alarm_targets(envs, hearing):
     assert summary["median_reaction_s"] <= 0.5, summary
 
 
-@pytest.mark.xfail(reason=LOCALIZATION, strict=False)
+@pytest.mark.xfail(reason=PARKING_BRAKE, strict=False)
 def test_scripted_parking_brake_targets(envs, hearing):
     need(hearing, "ratchet")
     summary, _ = episodes(envs, "parking-brake", "scripted")
