@@ -211,3 +211,22 @@ def test_reverse_alarm_listening_pose_and_front_back_mirror(envs):
     assert accepts(135.0)  # its mirror image (car +90 deg): the ears cannot tell them apart
     assert not accepts(-135.0)  # behind the car (mirror: car -90 deg)
     assert not accepts(-45.0) and not accepts(0.0) and not accepts(90.0)  # car -90, -45 and +45 deg
+
+
+def test_parking_brake_hears_the_right_by_lateral_angle(envs):
+    """"From the right" is a lateral angle of at least 20 deg to the right, wherever on the
+    cone of confusion the estimate falls: the ratchet's pawl (-108 deg, -63 deg: lateral 26
+    deg), its estimates and their mirror images count, the radio in front (-17 deg) and its
+    mirror image behind (-164 deg, the traced early release) do not, nor anything on the left."""
+    from acoustic_sim.frames import sph_to_vec
+    from policies.scripted import ScriptedParkingBrake, lateral_deg
+
+    pol = ScriptedParkingBrake(envs["parking-brake"])
+    assert lateral_deg(sph_to_vec(-90.0, 0.0)) == pytest.approx(-90.0)
+    assert lateral_deg(sph_to_vec(-150.0, 0.0)) == pytest.approx(-30.0)
+    assert pol.lateral_deg == 20.0
+    assert lateral_deg(sph_to_vec(30.0, 60.0)) == pytest.approx(14.48, abs=0.01)  # asin(cos 60 sin 30)
+    for az, el in ((-108.0, -63.0), (-72.0, -63.0), (-110.0, 0.0), (-70.0, -30.0), (-62.1, -30.0), (-111.7, 30.0)):
+        assert pol.accept(sph_to_vec(az, el), None), (az, el)
+    for az, el in ((-17.0, 0.0), (-163.6, 10.0), (-150.0, 80.0), (63.9, -20.0), (48.5, -40.0), (0.0, -90.0)):
+        assert not pol.accept(sph_to_vec(az, el), None), (az, el)
