@@ -170,6 +170,15 @@ class ScriptedReverseAlarm(LeverPolicy):
     head straight, mirror accepted, 15 deg: 0.73, 0.02; head turned 45 deg right, mirror
     accepted, 20 deg: 0.82, 0.03; the same with the cabin's specificity rule
     (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0.
+
+    Where it fails (``acoustic-sim eval tasks``, paper models, seeds 100-129, with the
+    validity rule's leakage test: 0.80, no false release, 6 late): the first beep starts
+    with the gearshift's clunk as the lever enters R, the onset detector finds the clunk's
+    impact (the alarm ramps in over 2-8 ms), and its first wavefront places the "alarm" at
+    87 deg azimuth, -10 deg elevation (the lever, left of the turned head) in four of the
+    six (seeds 103, 114, 115, 120, identical estimates); the next beep, 0.8-1.1 s later, is
+    placed right, but the release then comes 1.03-1.12 s after the alarm's start, past the
+    task's 1.0 s.
     """
 
     side = "left"
@@ -226,7 +235,11 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     sector (-165 to -35 deg, the previous rule) took the radio's speech in front at -17 deg,
     placed at its front-back mirror image -164 deg (lateral 16 deg), for the ratchet (fast
     models, seed 115: an early release). Fast models, seeds 100-119: success 0.65 -> 0.70,
-    false releases 0.15 -> 0.05 (the same with 20, 30 or 40 deg).
+    false releases 0.15 -> 0.05 (the same with 20, 30 or 40 deg). Paper models, seeds
+    100-129 (``acoustic-sim eval tasks``): 0.87, no false release, 4 late: clicks placed
+    near the median plane (seed 104, while the key turns: lateral 16 deg, which the
+    azimuth sector accepted; 122: near the zenith, lateral 10 deg), on the left with the
+    turn-signal relay (121), or not localized before the 0.5 s limit (115).
     """
 
     side = "right"
