@@ -347,7 +347,11 @@ MUSIC on all 13 signals (triangle 500 Hz 5.3 against 17.0 deg, square 500 Hz 6.6
 44.0), a single bin, where the lattice changes nothing. Above 15 deg among the broadband
 signals: square 2 kHz, 21.5 deg: its harmonics up to 12 kHz meet three networks (2, 6 and
 10 kHz); its median error is 0 and its mean comes from cone-of-confusion mistakes (the
-same lateral angle, another elevation), which three bins' interaural cues do not resolve. A pure tone off the lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper
+same lateral angle, another elevation), which three bins' interaural cues do not resolve:
+banks trained on those three bins alone (109 directions; 1 or 2 epochs, 1000 or 3000
+sounds) gave 17.7-24.3 deg for the square wave and 17.3-22.6 deg for white noise heard
+through the same three bins, so more training does not reach 15 deg; a fourth harmonic
+(14 kHz) lies outside the networks' 300 Hz-12 kHz range. A pure tone off the lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper
 harmonics) meets no network, and one below it only where the fill has a bin: a bank of a
 subset of bins cannot localise every tone.
 
