@@ -239,7 +239,11 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     100-129 (``acoustic-sim eval tasks``): 0.87, no false release, 4 late: clicks placed
     near the median plane (seed 104, while the key turns: lateral 16 deg, which the
     azimuth sector accepted; 122: near the zenith, lateral 10 deg), on the left with the
-    turn-signal relay (121), or not localized before the 0.5 s limit (115).
+    turn-signal relay (121), or not localized before the 0.5 s limit (115). The two rules
+    side by side (the same episodes, only ``accept`` changed): paper models,
+    seeds 100-159: lateral 20 deg 54/60, sector 56/60, no false release with either; fast
+    models, seeds 100-129: lateral 0.70 with 2 false releases, sector 0.60 with 6. Lateral
+    10 deg (paper, 100-129): 0.87 with 2 false releases.
     """
 
     side = "right"
