@@ -351,9 +351,9 @@ same lateral angle, another elevation), which three bins' interaural cues do not
 banks trained on those three bins alone (109 directions; 1 or 2 epochs, 1000 or 3000
 sounds) gave 17.7-24.3 deg for the square wave and 17.3-22.6 deg for white noise heard
 through the same three bins, so more training does not reach 15 deg; a fourth harmonic
-(14 kHz) lies outside the networks' 300 Hz-12 kHz range. A pure tone off the lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper
-harmonics) meets no network, and one below it only where the fill has a bin: a bank of a
-subset of bins cannot localise every tone.
+(14 kHz) lies outside the networks' 300 Hz-12 kHz range. A pure tone off the lattice above
+1.8 kHz (a 2.25 kHz sine, a voice's upper harmonics) meets no network, and one below it
+only where the fill has a bin: a bank of a subset of bins cannot localise every tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
 grid) is a virtual source, not only the 327 nearest to grid directions, so sources between
