@@ -172,13 +172,15 @@ class ScriptedReverseAlarm(LeverPolicy):
     (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0.
 
     Where it fails (``acoustic-sim eval tasks``, paper models, seeds 100-129, with the
-    validity rule's leakage test: 0.80, no false release, 6 late): the first beep starts
-    with the gearshift's clunk as the lever enters R, the onset detector finds the clunk's
-    impact (the alarm ramps in over 2-8 ms), and its first wavefront places the "alarm" at
-    87 deg azimuth, -10 deg elevation (the lever, left of the turned head) in four of the
-    six (seeds 103, 114, 115, 120, identical estimates); the next beep, 0.8-1.1 s later, is
-    placed right, but the release then comes 1.03-1.12 s after the alarm's start, past the
-    task's 1.0 s.
+    validity rule's leakage test: 0.80, no false release, 6 late): in four of the six
+    (seeds 103, 114, 115, 120) a beep is placed at 87 deg azimuth, -10 deg elevation
+    (lateral 80 deg; the alarm is at 45 deg from the turned head), the same grid direction
+    each time. In 103, 114 and 120 that is the first beep, which starts with the
+    gearshift's clunk; in 115 the first beep is masked by a car horn and the second, with
+    no clunk, lands there too, so the clunk is not the whole cause. The next beep, 0.8-1.1 s
+    later, is placed right, but the release then comes 1.03-1.12 s after the alarm's start,
+    past the task's 1.0 s. Of the other two, 108's first beep is placed at 99 deg, 30 deg up,
+    and 116's beeps give no direction until 1.98 s after the alarm's start.
     """
 
     side = "left"
