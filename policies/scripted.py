@@ -177,10 +177,10 @@ class ScriptedReverseAlarm(LeverPolicy):
     (lateral 80 deg; the alarm is at 45 deg from the turned head), the same grid direction
     each time. In 103, 114 and 120 that is the first beep, which starts with the
     gearshift's clunk; in 115 the first beep is masked by a car horn and the second, with
-    no clunk, lands there too, so the clunk is not the whole cause. The next beep, 0.8-1.1 s
-    later, is placed right, but the release then comes 1.03-1.12 s after the alarm's start,
-    past the task's 1.0 s. Of the other two, 108's first beep is placed at 99 deg, 30 deg up,
-    and 116's beeps give no direction until 1.98 s after the alarm's start.
+    no clunk, lands there too, so the clunk is not the whole cause. A later beep (0.8-1.1 s
+    period) is placed right, but the release then comes after the task's 1.0 s (103, 114,
+    120: 1.03-1.11 s; 115: 3.08 s). Of the other two, 108's first beep is placed at 99 deg,
+    30 deg up, and 116's beeps give no direction until about 1.9 s after the alarm's start.
     """
 
     side = "left"
