@@ -181,6 +181,13 @@ class ScriptedReverseAlarm(LeverPolicy):
     period) is placed right, but the release then comes after the task's 1.0 s (103, 114,
     120: 1.03-1.11 s; 115: 3.08 s). Of the other two, 108's first beep is placed at 99 deg,
     30 deg up, and 116's beeps give no direction until about 1.9 s after the alarm's start.
+    The 87/-10 deg placements are an onset effect: a beep ramps up over 2-8 ms, and in the
+    first-wavefront window the far ear, up to 0.7 ms behind on the ramp, is quieter than the
+    head makes it (seed 103: ILD 1.47 and 2.10 at 1184 and 3510 Hz, 0.92 and 1.19 with the
+    ears aligned on their lag). Aligning removes it (``FirstWavefront(align_lag_ms=)``, see
+    :mod:`acoustic_sim.auditory.precedence`), but over the episodes it loses about as many
+    as it gains (paper, seeds 100-129: 24/30 -> 25/30; fast, 100-119: 18/20 -> 17/20), so
+    the pipeline does not align.
     """
 
     side = "left"

@@ -51,7 +51,7 @@ def test_take_returns_the_tapered_window_of_the_strongest_ready_onset():
     w, onsets = _onsets(x, [706])
     assert len(onsets) == 2
     assert w.take(5000) is None  # no window is complete yet
-    end = onsets[1] + w.post
+    end = onsets[1] + w.ready_after
     spec = w.take(end)
     s = onsets[1]
     want = np.fft.rfft(x[:, s - w.pre : s + w.post] * w.taper, n=2048, axis=-1)
@@ -99,6 +99,64 @@ def test_added_energy_is_the_new_sound_s_not_the_steady_one():
     assert FirstWavefront().take_added(n) == []  # off by default
 
 
+def _ramped_onset(kind: str, delay: int, gain: float, n: int = 20000, start: int = 9000):
+    """Two ears: a 3.5 kHz tone ramped up over 6 ms (sin^2, like the reverse alarm's beeps),
+    or a click (a decaying 3.5 kHz burst), the right ear ``delay`` samples later and ``gain``
+    times the left, over faint noise."""
+    rng = np.random.default_rng(4)
+    x = 1e-5 * rng.standard_normal((2, n))
+    t = np.arange(n - start) / 44100
+    tone = np.sin(2 * np.pi * 3500.0 * t)
+    if kind == "ramp":
+        env = np.sin(0.5 * np.pi * np.clip(t / 0.006, 0, 1)) ** 2
+    else:
+        env = np.exp(-t / 0.0015)
+    sig = 0.05 * tone * env
+    x[0, start:] += sig
+    x[1, start + delay:] += gain * sig[: n - start - delay]
+    return x
+
+
+def _ild_ipd_at(spec, hz):
+    from acoustic_sim.auditory.frontend import bin_frequencies
+
+    b = int(np.argmin(np.abs(bin_frequencies() - hz)))
+    return float(np.log(abs(spec[0, b]) / abs(spec[1, b]))), float(np.angle(spec[0, b] * np.conj(spec[1, b])))
+
+
+def _first_window(x, **kwargs):
+    w = FirstWavefront(**kwargs)
+    w.push(x)
+    s, spec = w.take_onset(x.shape[1])
+    return w, s, spec
+
+
+def test_a_rising_onset_s_level_difference_is_taken_on_the_interaural_lag():
+    """A ramped tone reaches the right ear 20 samples (0.45 ms) later at half the amplitude
+    (ILD ln 2 = 0.69). The common window overstates the ILD (1.97: the far ear is further down the
+    ramp); aligned on the lag found (18), the ILD is the true one within 0.15, and the IPD is the
+    common window's (the phase is not touched). A click (falling energy) is not aligned."""
+    x = _ramped_onset("ramp", 20, 0.5)
+    w, s, aligned = _first_window(x, align_lag_ms=0.8)
+    _, s0, common = _first_window(x)  # not aligned by default
+    assert s == s0 and abs(w.interaural_lag(s) - 20) <= 2
+    ild, ipd = _ild_ipd_at(aligned, 3500.0)
+    ild0, ipd0 = _ild_ipd_at(common, 3500.0)
+    assert abs(ild - np.log(2.0)) <= 0.15, ild
+    assert ild0 - np.log(2.0) >= 0.3, ild0  # the bias that the alignment removes
+    assert ipd == pytest.approx(ipd0, abs=1e-12)
+    np.testing.assert_array_equal(aligned[0], common[0])  # the near ear's window is unchanged
+    # Mirrored (the left ear later): the lag changes sign, the ILD too.
+    w, s, mirrored = _first_window(x[::-1].copy(), align_lag_ms=0.8)
+    assert abs(w.interaural_lag(s) + 20) <= 2
+    assert abs(_ild_ipd_at(mirrored, 3500.0)[0] + np.log(2.0)) <= 0.15
+    # A click's energy falls over the window: no alignment, the common window.
+    click = _ramped_onset("click", 20, 0.5)
+    w, s, spec = _first_window(click, align_lag_ms=0.8)
+    assert w.interaural_lag(s) == 0
+    np.testing.assert_array_equal(spec, _first_window(click)[2])
+
+
 def test_steady_noise_gives_one_onset():
     rng = np.random.default_rng(2)
     x = np.concatenate([1e-4 * rng.standard_normal((2, 8000)), 1e-2 * rng.standard_normal((2, 44100))], axis=1)
@@ -118,7 +176,8 @@ def test_bad_parameters_are_errors():
     for kwargs, word in (({"ratio": 1.0}, "ratio"), ({"highpass_hz": 30000.0}, "highpass"),
                          ({"baseline_ms": (5.0, 2.0)}, "baseline"), ({"window_ms": (0.0, 0.0)}, "window"),
                          ({"window_ms": (1.0, 60.0)}, "window"), ({"added_ms": 0.0}, "added_ms"),
-                         ({"added_ms": 50.0}, "added_ms")):
+                         ({"added_ms": 50.0}, "added_ms"), ({"align_lag_ms": 0.0}, "align_lag_ms"),
+                         ({"align_growth": 0.0}, "align_growth")):
         with pytest.raises(ConfigError, match=word):
             FirstWavefront(**kwargs)
 
