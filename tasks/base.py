@@ -113,6 +113,8 @@ class HearingTaskEnv(gym.Env):
     frame counts for every detected class."""
     specificity = 0.0
     """The pipeline's second attribution rule (``AuditoryPipeline(specificity=)``): 0, off."""
+    onset_windows = 1
+    """Windows the pipeline takes at a rising onset (``AuditoryPipeline(onset_windows=)``): 1."""
     warmup_s = 0.5
     """Seconds the ears listen before the episode starts (see :meth:`_warm_up`)."""
     spec_action_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
@@ -154,7 +156,7 @@ class HearingTaskEnv(gym.Env):
         self._noise_reference_of = None  # (ambient power, ego level) the pipeline's noise reference was made from
         self._ego_unit_spectrum = None  # (ego noise, its unit_power_spectrum for the front end's window)
         self.layout = action_layout(self.scene_name)
-        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity)
+        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32)

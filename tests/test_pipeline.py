@@ -375,3 +375,36 @@ def test_room_experiment_repeats_each_angle(kemar):
     assert r["tb_accuracy"]["ahead"] == pytest.approx(float(np.mean(median[np.abs(median[:, 2]) > 1e-6, 2] <= 0)), abs=1e-4)
     with pytest.raises(ConfigError, match="trials"):
         localization.room(kemar, ahead, rng=np.random.default_rng(0), quick=True, trials=0, progress=False)
+
+
+def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alone(pipe, kemar):
+    """onset_windows=3: a broadband sound ramped up over 6 ms (a rising onset) is heard
+    through three windows: the class's map at the onset's frame is, per valid bin, the mean
+    of the three windows' existence maps (summed over the bins); a click (a decaying burst)
+    through one. Bad values are errors."""
+    bank = pipe.ssdenet
+    cnn = _DetectsSome(pipe.melcnn, bank.bins)
+    rng = np.random.default_rng(6)
+    n, start = int(0.5 * SAMPLE_RATE), int(0.3 * SAMPLE_RATE)
+    t = np.arange(n - start) / SAMPLE_RATE
+    noise = rng.standard_normal(n - start)
+    own = np.isin(bank.bins, cnn.characteristic_bins[pipe.classes[0]])
+    for kind, env, k in (("ramp", np.sin(0.5 * np.pi * np.clip(t / 0.006, 0, 1)) ** 2, 3), ("click", np.exp(-t / 0.002), 1)):
+        x = 2e-4 * rng.standard_normal((2, n))
+        sig = 0.05 * noise * env
+        x[0, start:] += sig
+        x[1, start + 12:] += 0.5 * sig[:-12]
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, onset_windows=3, direction_frames=1)
+        for i in range(0, n, 706):  # about a frame at a time, to see each frame's evidence
+            out = p.process(x[:, i : i + 706])
+            valid, features = p.evidence[-1][:2] if out else (np.zeros(1, bool), None)
+            if out and (valid & own).any():
+                q = out[-1]
+                break
+        assert features.shape == (int(valid.sum()), k, 5), kind
+        pos = np.flatnonzero(valid)
+        maps = bank.existence(np.ascontiguousarray(features.transpose(1, 0, 2)), subset=pos).mean(axis=0)
+        want = maps[own[pos]].sum(axis=0)
+        np.testing.assert_allclose(q.directions[p.classes[0]].existence, want, rtol=1e-4, atol=1e-5)
+    with pytest.raises(ConfigError, match="onset_windows"):
+        AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, onset_windows=0)

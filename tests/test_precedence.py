@@ -157,6 +157,25 @@ def test_a_rising_onset_s_level_difference_is_taken_on_the_interaural_lag():
     np.testing.assert_array_equal(spec, _first_window(click)[2])
 
 
+def test_a_rising_onset_gets_more_windows_a_click_one():
+    """windows=3: a ramped tone's onset gives the first wavefront's window and two more,
+    each hop_ms later (the same tapered windows of the ear signals); a click's gives the
+    first only; windows=1 returns the one spectrum as before."""
+    x = _ramped_onset("ramp", 20, 0.5)
+    w, s, spectra = _first_window(x, windows=3, hop_ms=1.0)
+    one = _first_window(x)[2]
+    assert spectra.shape == (3, 2, 1025) and w.rising(s)
+    np.testing.assert_array_equal(spectra[0], one)
+    for j in (1, 2):
+        start = s - w.pre + j * w.hop
+        want = np.fft.rfft(x[:, start : start + w.pre + w.post] * w.taper, n=2048, axis=-1)
+        np.testing.assert_allclose(spectra[j], want, rtol=1e-10, atol=1e-12)
+    click = _ramped_onset("click", 20, 0.5)
+    w, s, spectra = _first_window(click, windows=3)
+    assert spectra.shape == (1, 2, 1025) and not w.rising(s)
+    np.testing.assert_array_equal(spectra[0], _first_window(click)[2])
+
+
 def test_steady_noise_gives_one_onset():
     rng = np.random.default_rng(2)
     x = np.concatenate([1e-4 * rng.standard_normal((2, 8000)), 1e-2 * rng.standard_normal((2, 44100))], axis=1)
@@ -177,7 +196,8 @@ def test_bad_parameters_are_errors():
                          ({"baseline_ms": (5.0, 2.0)}, "baseline"), ({"window_ms": (0.0, 0.0)}, "window"),
                          ({"window_ms": (1.0, 60.0)}, "window"), ({"added_ms": 0.0}, "added_ms"),
                          ({"added_ms": 50.0}, "added_ms"), ({"align_lag_ms": 0.0}, "align_lag_ms"),
-                         ({"align_growth": 0.0}, "align_growth")):
+                         ({"rise_ratio": 0.0}, "rise_ratio"), ({"windows": 0}, "windows"),
+                         ({"hop_ms": 0.0}, "hop_ms")):
         with pytest.raises(ConfigError, match=word):
             FirstWavefront(**kwargs)
 

@@ -186,6 +186,11 @@ class AuditoryPipeline:
         horn, a door) while a tonal alarm is detected lights up the alarm's bins too, and
         would put the alarm where the horn is; its energy, spread over all frequencies,
         hardly lies in the alarm's bins.
+    onset_windows : int
+        With ``precedence="wavefront"``: windows taken at a rising onset (the first
+        wavefront's and more, 1 ms apart; default 1), whose existence maps are averaged per
+        bin (:class:`~acoustic_sim.auditory.precedence.FirstWavefront`, ``windows``; what
+        it measured is in that module's docstring).
 
     Use :meth:`load` to get one with trained (cached) models.
     """
@@ -194,7 +199,7 @@ class AuditoryPipeline:
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
                  onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0,
-                 leakage: float = LEAKAGE) -> None:
+                 leakage: float = LEAKAGE, onset_windows: int = 1) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -215,6 +220,8 @@ class AuditoryPipeline:
             raise ConfigError(f"coverage must be in [0, 1], got {coverage}")
         if not (specificity is not None and np.isfinite(specificity) and 0.0 <= specificity <= 1.0):
             raise ConfigError(f"specificity must be in [0, 1], got {specificity}")
+        if not (isinstance(onset_windows, (int, np.integer)) and onset_windows >= 1):
+            raise ConfigError(f"onset_windows must be an integer >= 1, got {onset_windows!r}")
         if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
             raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
         self.hrtf = hrtf
@@ -264,7 +271,8 @@ class AuditoryPipeline:
         self.wavefront = None
         if precedence == "wavefront":
             # The attribution rule judges an onset by the energy it added (ADDED_MS segments).
-            self.wavefront = FirstWavefront(added_ms=ADDED_MS if self.specificity > 0.0 else None)
+            self.wavefront = FirstWavefront(added_ms=ADDED_MS if self.specificity > 0.0 else None,
+                                            windows=int(onset_windows))
         if self.wavefront is not None:
             self._short_ok = bin_frequencies()[ssdenet.bins] >= self.wavefront.min_hz  # (n_bank,)
         self._last_power: np.ndarray | None = None  # (n_bank,) both ears, the previous frame
@@ -274,7 +282,8 @@ class AuditoryPipeline:
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
              precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = 0.0,
-             specificity: float = 0.0, leakage: float = LEAKAGE, progress: bool = True) -> AuditoryPipeline:
+             specificity: float = 0.0, leakage: float = LEAKAGE, onset_windows: int = 1,
+             progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -292,7 +301,7 @@ class AuditoryPipeline:
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
                    direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
-                   coverage=coverage, specificity=specificity, leakage=leakage)
+                   coverage=coverage, specificity=specificity, leakage=leakage, onset_windows=onset_windows)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -341,8 +350,9 @@ class AuditoryPipeline:
             else:
                 valid = self._valid(x)[bins]
                 # The window spans too few periods of the lowest bins to carry their
-                # phase: there the frame's own spectra give the features.
-                cues = np.where(self._short_ok[None, :], onset[:, bins], x[:, bins])
+                # phase: there the frame's own spectra give the features. With more
+                # onset windows (a rising onset), (k, 2, n_bank).
+                cues = np.where(self._short_ok, onset[..., bins], x[:, bins])
         else:
             valid = self._valid(x)[bins]
             cues = x[:, bins]
@@ -353,8 +363,10 @@ class AuditoryPipeline:
                 valid &= power > self.onset_ratio * last if last is not None else True
         shares = None
         if valid.any():
-            sel = cues[:, valid]
-            features = ild_ipd(sel[0], sel[1])
+            sel = cues[..., valid]
+            features = ild_ipd(sel[..., 0, :], sel[..., 1, :])
+            if features.ndim == 3:  # (k, n_valid, 5) -> (n_valid, k, 5): rows are bins, as for one window
+                features = np.ascontiguousarray(features.transpose(1, 0, 2))
             if self.specificity > 0.0:
                 if self.precedence == "wavefront":
                     # Judged once the energy the onset added is known (this frame or the next);
@@ -420,7 +432,12 @@ class AuditoryPipeline:
                     maps = item[2] = np.zeros((valid.size, n_dirs), np.float32)
                 pos = np.flatnonzero(need)
                 rows = np.searchsorted(np.flatnonzero(valid), pos)  # features are stored for the valid bins
-                maps[pos] = self.ssdenet.existence(features[rows], subset=pos, within=within)
+                f = features[rows]
+                if f.ndim == 3:  # several onset windows: the mean of their maps per bin
+                    maps[pos] = self.ssdenet.existence(np.ascontiguousarray(f.transpose(1, 0, 2)), subset=pos,
+                                                       within=within).mean(axis=0)
+                else:
+                    maps[pos] = self.ssdenet.existence(f, subset=pos, within=within)
                 have |= need
             sel = masks[:, used]  # (c, n_used)
             if self.coverage > 0.0:

@@ -41,7 +41,7 @@ reverse alarm's 1.1 kHz, so its added energy stays in its bins, and the sounds a
 playing cancel. The onset's wavefront is handed over as before; its added energy once that
 segment is complete (at most a frame later).
 
-A rising onset (``align_lag_ms``, ``align_growth``): the reverse alarm's beeps ramp up over
+A rising onset (``align_lag_ms``, ``rise_ratio``): the reverse alarm's beeps ramp up over
 2-8 ms, and the detector fires early in the ramp, where the amplitude still grows several
 times over the window. The far ear hears the same ramp up to 0.7 ms later (the interaural
 time difference), so within one window it is further down the ramp, and the window's ILD
@@ -51,7 +51,7 @@ the turned head): ILD 1.47 at 1184 Hz and 2.10 at 3510 Hz (natural log of the am
 ratio), placed at 87 deg azimuth, -10 deg elevation (lateral 80 deg); the level difference
 of the ears aligned on their interaural delay (the first version below): 0.92 and 1.19, an
 accepted direction. When
-the window's energy grows (its second half holds at least ``align_growth`` times the first
+the window's energy grows (its second half holds at least ``rise_ratio`` times the first
 half's, both ears, high-passed), the far ear's magnitude spectrum is therefore taken from
 a window delayed by the interaural lag: the lag (up to ``align_lag_ms``) at which the far
 ear's log envelope (Hilbert, high-passed; the far ear is the one with less energy in the
@@ -76,6 +76,16 @@ the growth gate, ParkingBrake (paper, 100-129) 26/30 -> 25/30; with the far ear'
 also taken from the shifted window (the lag's phase put back per bin), 24/30 with two
 false releases.
 
+More looks at a rising onset (``windows``, ``hop_ms``): each beep of the reverse alarm is
+one onset, so one window, one direction sample from two or three bins, and the next beep
+comes 0.8-1.1 s later. While a sound ramps up, the direct path still leads its reflections
+for some milliseconds (a reflection 1-2 ms late is further down the ramp), so a rising
+onset gets ``windows`` windows, ``hop_ms`` apart, whose existence maps the pipeline
+averages per bin (``AuditoryPipeline(onset_windows=)``); a click (falling energy) keeps one
+window, as does every onset with ``windows=1`` (the default). The cabin tasks take three,
+1 ms apart (:attr:`tasks.cabin.CabinLeverTask.onset_windows`, which has the measurements:
+ReverseAlarm, paper models, 74/90 -> 80/90 episodes).
+
 Hand-written because no library in the project detects onsets on a streaming sample
 clock (scipy has the filters, which are used).
 """
@@ -90,8 +100,8 @@ from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE
 
 
-ALIGN_MARGIN = 32
-"""Samples (0.7 ms) kept beyond the searched lags around an onset's window for its Hilbert envelope."""
+ENVELOPE_MARGIN = 32
+"""Samples (0.7 ms) kept beyond an onset's window (and the searched lags) for its Hilbert envelopes."""
 
 
 class FirstWavefront:
@@ -125,17 +135,24 @@ class FirstWavefront:
     align_lag_ms : float or None
         Largest interaural lag (ms) searched when aligning a rising onset's ears (module
         docstring; 0.8 covers the head's 0.7 ms); None (default): never aligned. With it, an
-        onset's window is ready ``align_lag_ms`` plus :data:`ALIGN_MARGIN` later.
-    align_growth : float
-        An onset is aligned when the second half of its window holds at least this many
-        times the energy of the first half (> 0; default 2).
+        onset's window is ready ``align_lag_ms`` plus :data:`ENVELOPE_MARGIN` later.
+    rise_ratio : float
+        An onset is rising when the second half of its window holds at least this many
+        times the energy of the first half (> 0; default 2): only rising onsets are
+        aligned, and only they get more than one window.
+    windows : int
+        Windows taken at a rising onset (>= 1; default 1): the first wavefront's and
+        ``windows - 1`` more, each ``hop_ms`` later (module docstring). With more than one,
+        :meth:`take_onset` returns their spectra stacked (k, 2, n_fft // 2 + 1).
+    hop_ms : float
+        Spacing (ms) of those windows (> 0; default 1).
     """
 
     def __init__(self, *, sample_rate: int = SAMPLE_RATE, highpass_hz: float = 1000.0, block_ms: float = 0.5,
                  baseline_ms: tuple[float, float] = (1.0, 10.0), ratio: float = 8.0, refractory_ms: float = 15.0,
                  window_ms: tuple[float, float] = (0.25, 1.5), n_fft: int = N_FFT,
                  added_ms: float | None = None, align_lag_ms: float | None = None,
-                 align_growth: float = 2.0) -> None:
+                 rise_ratio: float = 2.0, windows: int = 1, hop_ms: float = 1.0) -> None:
         if not 0.0 < highpass_hz < sample_rate / 2:
             raise ConfigError(f"highpass_hz must be in (0, {sample_rate / 2}), got {highpass_hz}")
         if not (np.isfinite(ratio) and ratio > 1.0):
@@ -170,20 +187,28 @@ class FirstWavefront:
             if not (np.isfinite(align_lag_ms) and align_lag_ms > 0):
                 raise ConfigError(f"align_lag_ms must be > 0 ms or None, got {align_lag_ms}")
             self.lag = max(1, round(align_lag_ms * 1e-3 * sample_rate))
-        if not (np.isfinite(align_growth) and align_growth > 0):
-            raise ConfigError(f"align_growth must be > 0, got {align_growth}")
-        self.align_growth = float(align_growth)
+        if not (np.isfinite(rise_ratio) and rise_ratio > 0):
+            raise ConfigError(f"rise_ratio must be > 0, got {rise_ratio}")
+        self.rise_ratio = float(rise_ratio)
+        if not (isinstance(windows, (int, np.integer)) and windows >= 1):
+            raise ConfigError(f"windows must be an integer >= 1, got {windows!r}")
+        if not (np.isfinite(hop_ms) and hop_ms > 0):
+            raise ConfigError(f"hop_ms must be > 0 ms, got {hop_ms}")
+        self.windows = int(windows)
+        self.hop = max(1, round(hop_ms * 1e-3 * sample_rate))
+        self._extra = (self.windows - 1) * self.hop  # samples the later windows reach beyond the first
+        self._rises = bool(self.lag) or self.windows > 1  # whether onsets are tested for a rise
         # Samples beyond the searched lags on either side, so that the Hilbert envelope's
         # edge effects stay outside the compared stretch.
-        self._margin = self.lag + (ALIGN_MARGIN if self.lag else 0)
-        self.ready_after = self.post + self._margin
+        self._margin = self.lag + (ENVELOPE_MARGIN if self._rises else 0)
+        self.ready_after = self.post + self._margin + self._extra
         """Samples after an onset that must have been pushed before its window is taken."""
         self.min_hz = 2.0 * sample_rate / (self.pre + self.post)
         """Lowest frequency (Hz) with two periods in the window; below it the window's
         spectrum is the taper's, not the sound's (the pipeline uses the frame there)."""
         self.taper = sp_signal.windows.tukey(self.pre + self.post, 0.3)
         self._sos = sp_signal.butter(2, highpass_hz, btype="high", fs=sample_rate, output="sos")
-        self._keep = self.pre + self.post + self.block + 2 * self._margin  # raw samples kept before the newest
+        self._keep = self.pre + self.post + self.block + 2 * self._margin + self._extra  # raw samples kept
         self.reset()
 
     def reset(self) -> None:
@@ -228,13 +253,13 @@ class FirstWavefront:
             self._energy = energy[-self.far:]
             self._blocks += whole
         audio = np.concatenate([self._audio, x], axis=1)
-        hp = np.concatenate([self._hp, y], axis=1) if self.lag else self._hp
+        hp = np.concatenate([self._hp, y], axis=1) if self._rises else self._hp
         self.sample += n
         oldest = min([s - self.pre - self._margin for s, _ in self.pending] + [s - self.added for s in self.awaiting]
                      + [self.sample - self._keep])
         cut = max(0, oldest - self._audio_start)
         self._audio = audio[:, cut:]
-        if self.lag:
+        if self._rises:
             self._hp = hp[:, cut:]
         self._audio_start += cut
 
@@ -245,9 +270,11 @@ class FirstWavefront:
         return None if taken is None else taken[1]
 
     def take_onset(self, end_sample: int) -> tuple[int, np.ndarray] | None:
-        """(onset sample, spectrum (2, n_fft // 2 + 1)) of the strongest onset whose window
-        ends by ``end_sample``, or None; every onset up to there is consumed, and with
-        ``added_ms`` the one returned awaits :meth:`take_added`."""
+        """(onset sample, spectrum (2, n_fft // 2 + 1)) of the strongest onset whose windows
+        end by ``end_sample``, or None; every onset up to there is consumed, and with
+        ``added_ms`` the one returned awaits :meth:`take_added`. With ``windows`` > 1 the
+        spectra of its windows, (k, 2, n_fft // 2 + 1): k = ``windows`` for a rising onset,
+        else 1."""
         last = self.ready_after
         ready = [(s, e) for s, e in self.pending if s + last <= end_sample]
         if not ready:
@@ -256,35 +283,53 @@ class FirstWavefront:
         s, _ = max(ready, key=lambda item: item[1])
         if self.added is not None:
             self.awaiting.append(s)
-        spectrum = np.fft.rfft(self._segment(s - self.pre, self.pre + self.post) * self.taper, n=self.n_fft, axis=-1)
-        if self.lag:
-            lag = self.interaural_lag(s)
+        n = self.pre + self.post
+        rising = self._rises and self.rising(s)
+        lag = self._lag(s) if rising and self.lag else 0
+        spectra = []
+        for j in range(self.windows if rising else 1):
+            start = s - self.pre + j * self.hop
+            spectrum = np.fft.rfft(self._segment(start, n) * self.taper, n=self.n_fft, axis=-1)
             if lag:
                 # The far ear's level from its window shifted by the lag, its phase from the common one.
                 far = 1 if lag > 0 else 0
-                shifted = np.fft.rfft(self._segment(s - self.pre + abs(lag), self.pre + self.post)[far] * self.taper,
-                                      n=self.n_fft)
+                shifted = np.fft.rfft(self._segment(start + abs(lag), n)[far] * self.taper, n=self.n_fft)
                 spectrum[far] = np.abs(shifted) * np.exp(1j * np.angle(spectrum[far]))
-        return s, spectrum
+            spectra.append(spectrum)
+        return s, (np.stack(spectra) if self.windows > 1 else spectra[0])
+
+    def _envelopes(self, onset: int, extra: int = 0) -> np.ndarray:
+        """Hilbert power envelopes (2, n + extra) of the high-passed ears from the onset's
+        window start (needs ``align_lag_ms`` or ``windows`` > 1)."""
+        n, m = self.pre + self.post, self._margin
+        hp = self._segment(onset - self.pre - m, n + 2 * m, self._hp)
+        env = np.abs(sp_signal.hilbert(hp, axis=-1)) ** 2
+        return env[:, m: m + n + extra] + 1e-30
+
+    def rising(self, onset: int) -> bool:
+        """Whether the onset at sample ``onset`` rises: the second half of its window holds
+        at least ``rise_ratio`` times the first half's energy (both ears, high-passed,
+        Hilbert envelopes); always False without ``align_lag_ms`` or more ``windows``."""
+        if not self._rises:
+            return False
+        both = self._envelopes(onset).sum(axis=0)
+        half = both.size // 2
+        return bool(both[half:].sum() >= self.rise_ratio * both[:half].sum())
 
     def interaural_lag(self, onset: int) -> int:
         """The right ear's lag (samples, + later) behind the left for the onset at sample
-        ``onset``: 0 unless the window's energy grows by ``align_growth``; else the delay
-        (up to ``align_lag_ms``) of the far ear (the one with less energy in the window)
-        behind the near one at which their log envelopes differ most steadily over the
-        window (weighted by the envelopes' geometric mean); always 0 without
-        ``align_lag_ms``. See the module docstring."""
-        if not self.lag:
+        ``onset``: 0 unless the onset is :meth:`rising` and ``align_lag_ms`` is set; else
+        the delay (up to ``align_lag_ms``) of the far ear (the one with less energy in the
+        window) behind the near one at which their log envelopes differ most steadily over
+        the window (weighted by the envelopes' geometric mean). See the module docstring."""
+        if not self.lag or not self.rising(onset):
             return 0
-        n, lag, m = self.pre + self.post, self.lag, self._margin
-        hp = self._segment(onset - self.pre - m, n + 2 * m, self._hp)
-        env = np.abs(sp_signal.hilbert(hp, axis=-1)) ** 2
-        env = env[:, m: m + n + lag] + 1e-30  # (2, n + lag): the window and the later lags
+        return self._lag(onset)
+
+    def _lag(self, onset: int) -> int:
+        n, lag = self.pre + self.post, self.lag
+        env = self._envelopes(onset, lag)  # (2, n + lag): the window and the later lags
         common = env[:, :n]
-        half = n // 2
-        both = common.sum(axis=0)
-        if both[half:].sum() < self.align_growth * both[:half].sum():
-            return 0
         near = int(common[1].sum() > common[0].sum())
         ref = common[near]
         far = np.lib.stride_tricks.sliding_window_view(env[1 - near], n)  # (lag + 1, n): far[k] = k samples later
