@@ -265,7 +265,8 @@ class FirstWavefront:
 
     def take(self, end_sample: int) -> np.ndarray | None:
         """The spectrum (2, n_fft // 2 + 1) of the strongest onset whose window ends by
-        ``end_sample``, or None; every onset up to there is consumed (:meth:`take_onset`)."""
+        ``end_sample`` (with ``windows`` > 1 its windows' spectra, (k, 2, n_fft // 2 + 1)),
+        or None; every onset up to there is consumed (:meth:`take_onset`)."""
         taken = self.take_onset(end_sample)
         return None if taken is None else taken[1]
 
