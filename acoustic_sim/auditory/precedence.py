@@ -50,18 +50,17 @@ alarm's first beep of ReverseAlarm seed 103 (paper models, kemar; the alarm 45 d
 the turned head): ILD 1.47 at 1184 Hz and 2.10 at 3510 Hz (natural log of the amplitude
 ratio), placed at 87 deg azimuth, -10 deg elevation (lateral 80 deg); the level difference
 of the ears aligned on their interaural delay (the first version below): 0.92 and 1.19, an
-accepted direction. When
-the window's energy grows (its second half holds at least ``rise_ratio`` times the first
-half's, both ears, high-passed), the far ear's magnitude spectrum is therefore taken from
+accepted direction. When the window's energy grows (a rising onset: its second half holds
+at least ``rise_ratio`` times the first half's, both ears, high-passed, :meth:`FirstWavefront.rising`),
+the far ear's magnitude spectrum is therefore taken from
 a window delayed by the interaural lag: the lag (up to ``align_lag_ms``) at which the far
 ear's log envelope (Hilbert, high-passed; the far ear is the one with less energy in the
 window) differs most steadily from the near ear's over the window. The phase (and so the
-IPD) stays that of the common window, and the near ear's window is unchanged.
-The growth gate keeps the clicks out: a click's energy falls over the window (the
-ratchet's in ParkingBrake seed 114: second half 0.6-0.9 of the first; the relay's there 4-9,
-the alarm's onsets in ReverseAlarm seed 103 18 and 35),
-and the lag criterion fails on them in the cabin (a ratchet click on the right got the
-lag of a source on the left).
+IPD) stays that of the common window, and the near ear's window is unchanged. The rise
+test keeps the clicks out: a click's energy falls over the window (the ratchet's in
+ParkingBrake seed 114: second half 0.6-0.9 times the first; the relay's there 4-9; the
+alarm's onsets in ReverseAlarm seed 103: 18 and 35), and the lag criterion fails on them
+in the cabin (a ratchet click on the right got the lag of a source on the left).
 
 The streaming pipeline does not align (``align_lag_ms=None``, the default): over the
 tasks the effect is a few episodes either way. Measured with the scripted policies
@@ -72,7 +71,7 @@ the reference, lags both ways) gave, paper models, ReverseAlarm seeds 100-159, 4
 53/60 with one false release (155: the other vehicle's beeper placed at 138 deg azimuth,
 60 deg up, whose front-back mirror image the policy accepts), ParkingBrake seeds 100-159
 54/60 -> 54/60; fast models, ReverseAlarm 18/20 -> 16/20 with one false release. Without
-the growth gate, ParkingBrake (paper, 100-129) 26/30 -> 25/30; with the far ear's phase
+the rise test, ParkingBrake (paper, 100-129) 26/30 -> 25/30; with the far ear's phase
 also taken from the shifted window (the lag's phase put back per bin), 24/30 with two
 false releases.
 
