@@ -200,8 +200,9 @@ class FirstWavefront:
         # Samples beyond the searched lags on either side, so that the Hilbert envelope's
         # edge effects stay outside the compared stretch.
         self._margin = self.lag + (ENVELOPE_MARGIN if self._rises else 0)
-        self.ready_after = self.post + self._margin + self._extra
-        """Samples after an onset that must have been pushed before its window is taken."""
+        self.ready_after = self.post + self._margin
+        """Samples after an onset that must have been pushed before its window is taken (a
+        rising onset with more ``windows`` waits ``(windows - 1) * hop_ms`` more)."""
         self.min_hz = 2.0 * sample_rate / (self.pre + self.post)
         """Lowest frequency (Hz) with two periods in the window; below it the window's
         spectrum is the taper's, not the sound's (the pipeline uses the frame there)."""
@@ -275,16 +276,25 @@ class FirstWavefront:
         ``added_ms`` the one returned awaits :meth:`take_added`. With ``windows`` > 1 the
         spectra of its windows, (k, 2, n_fft // 2 + 1): k = ``windows`` for a rising onset,
         else 1."""
-        last = self.ready_after
-        ready = [(s, e) for s, e in self.pending if s + last <= end_sample]
+        rises: dict[int, bool] = {}
+        ready = []
+        for s, e in self.pending:
+            if s + self.ready_after > end_sample:
+                continue
+            if self._rises:
+                rises[s] = self.rising(s)
+                if rises[s] and self.windows > 1 and s + self.ready_after + self._extra > end_sample:
+                    continue  # its later windows are not complete yet
+            ready.append((s, e))
         if not ready:
             return None
-        self.pending = [(s, e) for s, e in self.pending if s + last > end_sample]
+        taken = {s for s, _ in ready}
+        self.pending = [(s, e) for s, e in self.pending if s not in taken]
         s, _ = max(ready, key=lambda item: item[1])
         if self.added is not None:
             self.awaiting.append(s)
         n = self.pre + self.post
-        rising = self._rises and self.rising(s)
+        rising = rises.get(s, False)
         lag = self._lag(s) if rising and self.lag else 0
         spectra = []
         for j in range(self.windows if rising else 1):
