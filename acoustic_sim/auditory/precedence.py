@@ -272,10 +272,10 @@ class FirstWavefront:
 
     def take_onset(self, end_sample: int) -> tuple[int, np.ndarray] | None:
         """(onset sample, spectrum (2, n_fft // 2 + 1)) of the strongest onset whose windows
-        end by ``end_sample``, or None; every onset up to there is consumed, and with
-        ``added_ms`` the one returned awaits :meth:`take_added`. With ``windows`` > 1 the
-        spectra of its windows, (k, 2, n_fft // 2 + 1): k = ``windows`` for a rising onset,
-        else 1."""
+        end by ``end_sample``, or None; every such onset is consumed (a rising one whose
+        later windows are not complete yet waits), and with ``added_ms`` the one returned
+        awaits :meth:`take_added`. With ``windows`` > 1 the spectra of its windows,
+        (k, 2, n_fft // 2 + 1): k = ``windows`` for a rising onset, else 1."""
         rises: dict[int, bool] = {}
         ready = []
         for s, e in self.pending:
