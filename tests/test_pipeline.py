@@ -401,9 +401,9 @@ def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alon
             if out and (valid & own).any():
                 q = out[-1]
                 break
-        assert features.shape == (int(valid.sum()), k, 5), kind
+        assert features.shape == (k, int(valid.sum()), 5), kind  # (windows, valid bins, 5)
         pos = np.flatnonzero(valid)
-        maps = bank.existence(np.ascontiguousarray(features.transpose(1, 0, 2)), subset=pos).mean(axis=0)
+        maps = bank.existence(features, subset=pos).mean(axis=0)
         want = maps[own[pos]].sum(axis=0)
         np.testing.assert_allclose(q.directions[p.classes[0]].existence, want, rtol=1e-4, atol=1e-5)
     with pytest.raises(ConfigError, match="onset_windows"):

@@ -46,6 +46,7 @@ REVERSE_ALARM = (
     "no false release (results/tasks)"
 )
 
+
 @pytest.fixture(scope="module")
 def envs():
     made = {t: runner.make_env(t, profile="fast") for t in runner.TASK_NAMES}

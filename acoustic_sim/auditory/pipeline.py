@@ -364,9 +364,7 @@ class AuditoryPipeline:
         shares = None
         if valid.any():
             sel = cues[..., valid]
-            features = ild_ipd(sel[..., 0, :], sel[..., 1, :])
-            if features.ndim == 3:  # (k, n_valid, 5) -> (n_valid, k, 5): rows are bins, as for one window
-                features = np.ascontiguousarray(features.transpose(1, 0, 2))
+            features = ild_ipd(sel[..., 0, :], sel[..., 1, :])  # (n_valid, 5), or (k, n_valid, 5) for k windows
             if self.specificity > 0.0:
                 if self.precedence == "wavefront":
                     # Judged once the energy the onset added is known (this frame or the next);
@@ -432,12 +430,8 @@ class AuditoryPipeline:
                     maps = item[2] = np.zeros((valid.size, n_dirs), np.float32)
                 pos = np.flatnonzero(need)
                 rows = np.searchsorted(np.flatnonzero(valid), pos)  # features are stored for the valid bins
-                f = features[rows]
-                if f.ndim == 3:  # several onset windows: the mean of their maps per bin
-                    maps[pos] = self.ssdenet.existence(np.ascontiguousarray(f.transpose(1, 0, 2)), subset=pos,
-                                                       within=within).mean(axis=0)
-                else:
-                    maps[pos] = self.ssdenet.existence(f, subset=pos, within=within)
+                m = self.ssdenet.existence(features[..., rows, :], subset=pos, within=within)
+                maps[pos] = m.mean(axis=0) if m.ndim == 3 else m  # several onset windows: their mean per bin
                 have |= need
             sel = masks[:, used]  # (c, n_used)
             if self.coverage > 0.0:
