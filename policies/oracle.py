@@ -9,15 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from policies.scripted import LeverPolicy, TurnPolicy, fixed_azimuth
+from policies.scripted import LeverPolicy, ScriptedParkingBrake, ScriptedReverseAlarm, TurnPolicy, fixed_azimuth
 
 
 class OracleReverseAlarm(LeverPolicy):
     """Push the gearshift; let go on the first step after the alarm has started (``info``)."""
 
     side = "left"
-    rate_deg_s = 8.0
-    max_deg = 30.0
+    rate_deg_s = ScriptedReverseAlarm.rate_deg_s  # the same taught push as the scripted policy's
+    max_deg = ScriptedReverseAlarm.max_deg
 
     def should_release(self, obs, info) -> bool:
         return info.get("target_onset_s") is not None
@@ -31,8 +31,8 @@ class OracleParkingBrake(OracleReverseAlarm):
     """Pull the brake; let go on the first step after the required tooth has clicked (``info``)."""
 
     side = "right"
-    rate_deg_s = 12.0
-    max_deg = 45.0
+    rate_deg_s = ScriptedParkingBrake.rate_deg_s  # the same taught pull as the scripted policy's
+    max_deg = ScriptedParkingBrake.max_deg
 
 
 POLICY_CLASSES["parking-brake"] = OracleParkingBrake

@@ -84,7 +84,11 @@ class ParkingBrakeEnv(CabinLeverTask):
     either way), and judging an onset by the energy it added waits up to a frame."""
     default_max_episode_s = 10.0
     relay_probability = 0.6
+    relay_start_s = (0.1, 1.2)
+    """Range (s after the episode's start) of the turn-signal relay's first tick."""
     key_probability = 0.4
+    key_start_s = (0.2, 1.5)
+    """Range (s after the episode's start) of the key turn."""
     radio_probability = 0.5
     radio_start_s = (0.0, 2.0)
     relay_position = (1.45, 1.38, 0.66)
@@ -108,12 +112,12 @@ class ParkingBrakeEnv(CabinLeverTask):
     def _draw_distractors(self, rng: np.random.Generator) -> dict:
         return {
             "relay": rng.random() < self.relay_probability,
-            "relay_start": rng.uniform(0.1, 1.2),
+            "relay_start": rng.uniform(*self.relay_start_s),
             "relay_len": rng.uniform(2.0, 4.0),
             "relay_period": rng.uniform(0.33, 0.4),
             "relay_db": rng.uniform(60.0, 66.0),
             "key": rng.random() < self.key_probability,
-            "key_start": rng.uniform(0.2, 1.5),
+            "key_start": rng.uniform(*self.key_start_s),
         }
 
     def _play_distractors(self, plan: dict, rng: np.random.Generator) -> None:
