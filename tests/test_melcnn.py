@@ -241,6 +241,24 @@ def test_checkpoint_round_trip_and_cache(fast_model, fast_cache, tmp_path, monke
     np.testing.assert_array_equal(mc.MelCNN.load_or_train("fast", progress=False).predict(x), fast_model.predict(x))
 
 
+def test_cache_name_follows_the_recipe_and_a_voice_engine_change_warns(fast_model, fast_cache, monkeypatch):
+    import dataclasses
+
+    from acoustic_sim.acoustics import sounds
+
+    fast = mc.PROFILES["fast"]
+    assert mc.MelCNN.cache_path("fast").name.endswith(f"-{fast.ident}.pt")
+    # Another recipe of the same profile name is another file (a stale model is not loaded).
+    assert dataclasses.replace(fast, epochs=fast.epochs + 1).ident != fast.ident
+    assert dataclasses.replace(fast, eval_examples=fast.eval_examples + 1).ident == fast.ident
+    assert fast_model.metadata["voice_engine"] == sounds.voice_engine()
+    monkeypatch.setenv(checkpoint.CACHE_ENV, str(fast_cache))
+    other = "formant" if sounds.voice_engine() == "espeak-ng" else "espeak-ng"
+    monkeypatch.setattr(sounds, "voice_engine", lambda: other)
+    with pytest.warns(RuntimeWarning, match="acoustic-sim train melcnn --profile fast"):
+        mc.MelCNN.load_or_train("fast", progress=False)
+
+
 def test_checkpoint_errors(fast_model, tmp_path):
     with pytest.raises(ConfigError, match="does not exist"):
         mc.MelCNN.load(tmp_path / "missing.pt")

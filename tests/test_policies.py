@@ -3,12 +3,13 @@
 ``oracle`` (ground truth) must meet every target: that checks the tasks, their outcomes and
 their timing. ``scripted`` (the paper's behaviours, from the percepts) and ``blind`` (classes
 without directions) depend on the auditory pipeline: a probe first checks that the ``fast``
-models detect the task sounds at all. ParkingBrake's targets are marked ``xfail``
+models detect the task sounds at all (a failure if not). ParkingBrake's targets are marked ``xfail``
 (non-strict) with the measured reason (see the issue 5 report), so they show as XPASS once
 the pipeline delivers them. ReverseAlarm's too, since the cabin tasks take three windows at
 a rising onset (:attr:`tasks.cabin.CabinLeverTask.onset_windows`): with the paper models
-that brought ReverseAlarm from 74/90 to 80/90 (results/tasks), with the fast ones over these
-20 episodes from 0.90 to 0.80 and one false release (the reason below). Before, ReverseAlarm
+that brought ReverseAlarm from 74/90 to 80/90, with the fast ones over these 20 episodes
+from 0.90 to 0.80 and one false release (with the earlier fast MelCNN; the reason below
+gives the current count). Before, ReverseAlarm
 met its targets with the fast models once the validity rule dropped a tone's sidelobes
 (:data:`acoustic_sim.auditory.ssdenet.LEAKAGE`; 0.85 -> 0.90 success, 0.05 -> 0 false
 releases).
@@ -30,20 +31,18 @@ from policies import POLICIES, make_policy
 EPISODES = 20
 BLIND_EPISODES = 12  # enough to show that the distractors bite
 PARKING_BRAKE = (
-    "auditory pipeline: over these 20 episodes the fast models reach 0.75 success and no false release in "
-    "ParkingBrake, not 0.9: seeds 101, 103, 115 and 118 are late and 117 never lets go; the fast MelCNN (F1 0.58) "
-    "misses the first tooth's click under the key turn (key_turning 0.87, ratchet 0.49, seed 103) or the radio's "
-    "speech (seed 101), and the next tooth is late. Larger fast MelCNNs (3000 windows; 8 or 12 filters, F1 0.70 / "
-    "0.75) gave 0.60 (issue 5 report; paper models: results/tasks)"
+    "auditory pipeline: over these 20 episodes the fast models reach 0.85 success and no false release in "
+    "ParkingBrake, not 0.9: seeds 103, 106 and 115 are late (a first tooth's click missed or misplaced under the "
+    "relay, the key turn or the radio, and the next tooth comes 0.58 s later). With the previous fast MelCNN "
+    "(8 filters, 64 units) 0.75 (issue 5 report; paper models: results/tasks)"
 )
 
 REVERSE_ALARM = (
-    "auditory pipeline: over these 20 episodes the fast models reach 0.80 success and 0.05 false releases in "
-    "ReverseAlarm, not 0.9 with none: seed 100's false release is another vehicle's beeper on the left, which the "
-    "three onset windows place at the alarm's front-back mirror image (145 deg azimuth from the turned head), a "
-    "direction the scripted policy accepts because the ears cannot tell it from the alarm; 108, 115 and 116 are "
-    "late (a first beep placed elsewhere, the next one after 1.0 s). Paper models: 0.93 on seeds 100-129, "
-    "no false release (results/tasks)"
+    "auditory pipeline: over these 20 episodes the fast models reach 0.90 success and 0.05 false releases in "
+    "ReverseAlarm, not 0.9 with none: seed 100's false release is another vehicle's beeper on the left, placed at "
+    "the alarm's front-back mirror image from the turned head, a direction the scripted policy accepts because the "
+    "ears cannot tell it from the alarm; 116 is late (a first beep placed elsewhere, the next one after 1.0 s). "
+    "Paper models: results/tasks"
 )
 
 
@@ -81,7 +80,10 @@ def hearing(envs):
 def need(hearing, *labels):
     bad = {k: v for k, v in hearing.items() if k in labels and v < 0.3}
     if bad:
-        pytest.xfail(f"the fast MelCNN does not detect {sorted(bad)} (fraction of frames detected: {bad}): a pipeline issue")
+        # A failure, not an xfail: a fast MelCNN that stops detecting a class is a regression
+        # (the 8-filter recipe once trained to one that never detected a voice, and the
+        # xfail hid it; the 16-filter one gives macro F1 0.60-0.73 over three seeds).
+        pytest.fail(f"the fast MelCNN does not detect {sorted(bad)} (fraction of frames detected: {bad})")
 
 
 RESULTS: dict = {}

@@ -642,6 +642,13 @@ def _find_espeak() -> str | None:
     return shutil.which("espeak-ng")
 
 
+def voice_engine() -> str:
+    """The engine that ``engine="auto"`` speaks with on this machine: ``"espeak-ng"`` when it
+    is on the PATH, else ``"formant"``. Models trained on generated speech record it (the
+    voices, and so the trained weights, differ between the two)."""
+    return "espeak-ng" if _find_espeak() is not None else "formant"
+
+
 @dataclass(frozen=True)
 class _FormantVoice:
     f0: float             # Hz, mean pitch
