@@ -171,16 +171,15 @@ class ScriptedReverseAlarm(LeverPolicy):
     accepted, 20 deg: 0.82, 0.03; the same with the cabin's specificity rule
     (:attr:`tasks.cabin.CabinLeverTask.specificity`): 0.83, 0.
 
-    Where it fails (``acoustic-sim eval tasks``, paper models, seeds 100-129): 0.90, one
-    false release, 2 late: 115 (1.08 s; its first beep starts under a car horn) and 116
-    (1.98 s; its beeps give no direction until then); 118 lets go on another vehicle's
-    beeper on the left (114 deg azimuth from the turned head), placed at its front-back
-    mirror image (64 deg: 19 deg from the car's front, inside the front sector). The turned
-    head trades the beepers behind the car (whose mirror images now lie to the right) for
-    those on the left, whose mirror images lie in front: the ears cannot tell them from the
-    alarm. (The models of ``results/tasks`` were trained on the machine that ran it; with
-    those of an earlier machine, the same seeds, weights trained from the same seeds on
-    another CPU, gave 0.93 and no false release.) With one first-wavefront window per
+    Where it fails (``acoustic-sim eval tasks``, paper models, seeds 100-129): 0.93, no
+    false release, 2 late: 115 (1.10 s; its first beep starts under a car horn) and 116
+    (2.01 s; its beeps give no direction until then). Models trained where espeak-ng was
+    missing (formant voices) gave 0.90 with a false release: 118 let go on another
+    vehicle's beeper on the left (114 deg azimuth from the turned head), placed at its
+    front-back mirror image (64 deg: 19 deg from the car's front, inside the front sector).
+    The turned head trades the beepers behind the car (whose mirror images then lie to the
+    right) for those on the left, whose mirror images lie in front: the ears cannot tell
+    them from the alarm. With one first-wavefront window per
     onset (before :attr:`tasks.cabin.CabinLeverTask.onset_windows`) it was 0.80 with 6 late:
     in 103, 114, 115 and 120 a beep was placed at 87 deg azimuth, -10 deg elevation (lateral
     80 deg; the alarm is at 45 deg from the turned head), and the next beep, 0.8-1.1 s
@@ -254,15 +253,16 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     placed at its front-back mirror image -164 deg (lateral 16 deg), for the ratchet (fast
     models, seed 115: an early release). Fast models, seeds 100-119 (one onset window): 0.65 -> 0.70,
     false releases 0.15 -> 0.05 (the same with 20, 30 or 40 deg). Paper models, seeds
-    100-129 (``acoustic-sim eval tasks``): 0.83, no false release, 5 late, each a first
+    100-129 (``acoustic-sim eval tasks``): 0.90, no false release, 3 late, each a first
     click that the ears missed (the next tooth comes 0.58 s later, see ``rate_deg_s``): not
-    detected under the other sounds (103: key turn and relay, ratchet 0.47 < 0.5; 115: key
-    turn and radio; 118: radio and relay), or placed where the relay ticks at the same time
-    (104: near the median plane, lateral -11 deg, then right for three frames, outvoted by
-    the relay's tick heard from the left just before; 112: on the left, lateral 80 deg).
-    With the models of an earlier machine (the same seeds, another CPU): 0.87 with 4 late
-    (115, 118, 121, 122). With one onset window (before
-    :attr:`tasks.cabin.CabinLeverTask.onset_windows`) those models gave the same count. The
+    detected under the key turn (115: ratchet 0.01), heard late under the radio and the
+    relay and placed on the relay's side (118: lateral 21 deg left, 30 deg up), or placed
+    near the zenith under the radio (122: 80 deg up, lateral 10 deg). The models of an
+    earlier machine gave 0.87 (also 121 late); models trained without espeak-ng 0.83 (103,
+    104, 112, 115 and 118 late: clicks not detected under the key turn, the relay or the
+    radio, or placed where the relay ticked at the same time). With one onset window
+    (before :attr:`tasks.cabin.CabinLeverTask.onset_windows`) the earlier machine's models
+    gave the same count. The
     two rules side by side (one onset window; the same episodes, only ``accept`` changed):
     paper models, seeds 100-159: lateral 20 deg 54/60, sector 56/60, no false release with
     either; fast models, seeds 100-129: lateral 0.70 with 2 false releases, sector 0.60 with
@@ -276,7 +276,7 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     (:data:`acoustic_sim.world.names.BRAKE_TOOTH_ANGLES_DEG`): at 12 deg/s a first click that
     the ears miss or misplace is followed by the next 0.58 s later, after the task's 0.5 s.
     A pull at 24 deg/s (the next click 0.29 s later) was measured and not taken: paper
-    models, seeds 100-189, 82/90 -> 88/90 with the task's distractors, but most of that came
+    models (trained without espeak-ng), seeds 100-189, 82/90 -> 88/90 with the task's distractors, but most of that came
     from letting go before the relay and the key turn had started (the first tooth clicks
     0.33 s sooner; blind false releases 0.73 -> 0.27 on seeds 100-129). With both starting
     in the first 0.6 s, 83/90 at 12 deg/s and 84/90 at 24 (none false): the faster arm's
