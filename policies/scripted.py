@@ -260,30 +260,31 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     near the zenith under the radio (122: 80 deg up, lateral 10 deg). The models of an
     earlier machine gave 0.87 (also 121 late); models trained without espeak-ng 0.83 (103,
     104, 112, 115 and 118 late: clicks not detected under the key turn, the relay or the
-    radio, or placed where the relay ticked at the same time). With one onset window
-    (before :attr:`tasks.cabin.CabinLeverTask.onset_windows`) the earlier machine's models
-    gave the same count. The
-    two rules side by side (one onset window; the same episodes, only ``accept`` changed):
-    paper models, seeds 100-159: lateral 20 deg 54/60, sector 56/60, no false release with
-    either; fast models, seeds 100-129: lateral 0.70 with 2 false releases, sector 0.60 with
-    6. Lateral 10 deg (paper, 100-129): 0.87 with 2 false releases.
+    radio, or placed where the relay ticked at the same time). With one onset window (before
+    :attr:`tasks.cabin.CabinLeverTask.onset_windows`) the earlier machine's models gave the
+    same count. The two rules side by side (one onset window; the same episodes, only
+    ``accept`` changed): paper models, seeds 100-159: lateral 20 deg 54/60, sector 56/60, no
+    false release with either; fast models, seeds 100-129: lateral 0.70 with 2 false
+    releases, sector 0.60 with 6. Lateral 10 deg (paper, 100-129): 0.87 with 2 false
+    releases.
     """
 
     side = "right"
     delay_s = 0.2
     rate_deg_s = 12.0
     """The pull's speed. The brake's teeth are 7 deg apart
-    (:data:`acoustic_sim.world.names.BRAKE_TOOTH_ANGLES_DEG`): at 12 deg/s a first click that
-    the ears miss or misplace is followed by the next 0.58 s later, after the task's 0.5 s.
-    A pull at 24 deg/s (the next click 0.29 s later) was measured and not taken: paper
-    models (trained without espeak-ng), seeds 100-189, 82/90 -> 88/90 with the task's distractors, but most of that came
-    from letting go before the relay and the key turn had started (the first tooth clicks
-    0.33 s sooner; blind false releases 0.73 -> 0.27 on seeds 100-129). With both starting
-    in the first 0.6 s, 83/90 at 12 deg/s and 84/90 at 24 (none false): the faster arm's
-    motors are louder (twice every speed: 6 dB, :mod:`acoustic_sim.world.egonoise`) and
-    mask more clicks (at 24 deg/s, with the task's distractors, 15 releases came after the
-    second tooth, 0.24-0.44 s after the first click, and 2 were late; at 12, 8 late). 18,
-    21 and 30 deg/s with the task's distractors: 83, 85 and 87 of 90."""
+    (:data:`acoustic_sim.world.names.BRAKE_TOOTH_ANGLES_DEG`): at 12 deg/s a first click
+    that the ears miss or misplace is followed by the next 0.58 s later, after the task's
+    0.5 s. A pull at 24 deg/s (the next click 0.29 s later) was measured and not taken:
+    paper models (trained without espeak-ng), seeds 100-189, 82/90 -> 88/90 with the task's
+    distractors, but most of that came from letting go before the relay and the key turn had
+    started (the first tooth clicks 0.33 s sooner; blind false releases 0.73 -> 0.27 on
+    seeds 100-129). With both starting in the first 0.6 s, 83/90 at 12 deg/s and 84/90 at 24
+    (none false): the faster arm's motors are louder (twice every speed: 6 dB,
+    :mod:`acoustic_sim.world.egonoise`) and mask more clicks (at 24 deg/s, with the task's
+    distractors, 15 releases came after the second tooth, 0.24-0.44 s after the first click,
+    and 2 were late; at 12, 8 late). 18, 21 and 30 deg/s with the task's distractors: 83, 85
+    and 87 of 90."""
     max_deg = 45.0
     label = "ratchet"
     head_yaw_deg = 0.0  # the ratchet is far off the median plane: no front-back question
