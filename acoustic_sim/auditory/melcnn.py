@@ -264,8 +264,7 @@ class Profile:
         """16 hex digits of the recipe (network, data, optimisation, seed; not the name or the
         evaluation size): part of the cache file's name, so that a model cached by an older
         recipe of the same profile is not loaded for the new one."""
-        recipe = dataclasses.asdict(self)
-        recipe.pop("name"), recipe.pop("eval_examples")
+        recipe = {k: v for k, v in dataclasses.asdict(self).items() if k not in ("name", "eval_examples")}
         return hashlib.sha256(json.dumps(recipe, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
@@ -613,11 +612,11 @@ class MelCNN(nn.Module):
         path = cls.cache_path(profile)
         if path.exists():
             model = cls.load(path)
-            engine = model.metadata.get("voice_engine")
-            if engine is not None and engine != sounds.voice_engine():
-                warnings.warn(f"{path.name} was trained on {engine} voices and this machine speaks with "
-                              f"{sounds.voice_engine()}: rebuild it with `acoustic-sim train melcnn --profile "
-                              f"{get_profile(profile).name}`", RuntimeWarning, stacklevel=2)
+            trained_on, here = model.metadata.get("voice_engine"), sounds.voice_engine()
+            if trained_on is not None and trained_on != here:
+                warnings.warn(f"{path.name} was trained on {trained_on} voices and this machine speaks with {here}: "
+                              f"rebuild it with `acoustic-sim train melcnn --profile {model.metadata['profile']}`",
+                              RuntimeWarning, stacklevel=2)
             return model
         model = train(profile, progress=progress)
         model.save(path)
