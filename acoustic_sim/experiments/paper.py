@@ -96,7 +96,10 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     measured = HRTF.load(sofa)
     mgrid = DirectionGrid.paper(measured)
     mbank = SSDENetBank.load_or_train(measured, mgrid, profile, progress=progress)
-    room = localization.room(ears, _estimators(measured, mgrid, mbank), rng=rng, quick=quick, progress=progress)
+    # Beside the paper's three methods on the frames: the streaming pipeline's precedence
+    # rule (SSDENet on the loudspeaker's first wavefront), with the same bank.
+    room = localization.room(ears, _estimators(measured, mgrid, mbank), rng=rng, quick=quick, progress=progress,
+                             audio_estimators={"ssdenet-wavefront": localization.first_wavefront(mbank)})
     room.update(level_db_spl=[73.0, 76.0], distance_m=1.5, room="lab", trained_on=f"{measured.name} ({measured.ident})")
     timings["room_s"] = time.perf_counter() - t
     loc = {"simulation": simulation, "room": room, "hrtf": ears.name, "profile": profile, "quick": quick,
