@@ -12,7 +12,8 @@ from 0.90 to 0.80 and one false release (with the earlier fast MelCNN; the reaso
 gives the current count). Before, ReverseAlarm
 met its targets with the fast models once the validity rule dropped a tone's sidelobes
 (:data:`acoustic_sim.auditory.ssdenet.LEAKAGE`; 0.85 -> 0.90 success, 0.05 -> 0 false
-releases).
+releases). An xfail cannot fail, so the same episodes are also held to a floor below today's
+fast-model level (:data:`FLOOR_SUCCESS`, :data:`FLOOR_FALSE_RELEASES`), which does.
 """
 
 import json
@@ -146,6 +147,27 @@ def test_scripted_parking_brake_targets(envs, hearing):
     summary, _ = episodes(envs, "parking-brake", "scripted")
     assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, summary
     assert summary["median_reaction_s"] <= 0.3, summary
+
+
+FLOOR_SUCCESS = 0.75
+FLOOR_FALSE_RELEASES = 0.10
+"""The fast models' floor in the cabin tasks over these 20 episodes: measured 0.90 success with
+0.05 false releases (ReverseAlarm) and 0.85 with none (ParkingBrake), less two or three
+episodes of slack for models trained on another CPU (training is bit-identical on one
+machine only; variants of the fast SSDENet trained here gave 15-18 of 20)."""
+
+
+@pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
+                                                      ("parking-brake", "ratchet", 0.3)])
+def test_scripted_stays_above_the_fast_models_floor(envs, hearing, task, label, reaction_s):
+    """What the non-strict xfail targets above cannot do: fail when the behaviour regresses
+    below what the fast models deliver today (same episodes, no extra run), and hold the
+    issue's median reaction (0.5 s for the alarm, 0.3 s for the ratchet)."""
+    need(hearing, label)
+    summary, _ = episodes(envs, task, "scripted")
+    assert summary["success_rate"] >= FLOOR_SUCCESS, summary
+    assert summary["false_release_rate"] <= FLOOR_FALSE_RELEASES, summary
+    assert summary["median_reaction_s"] <= reaction_s, summary
 
 
 def test_scripted_call_response_finds_the_person(envs, hearing):
