@@ -17,9 +17,10 @@ def test_measured_hrtf_reproduces_the_ears_it_measured(tmp_path, kemar):
     for i in range(measured.n_directions):
         true = kemar.hrir[kemar.nearest_index(measured.directions[i : i + 1])[0]]
         got = measured.hrir[i]
-        # Interaural level difference within 1.5 dB (the room's early reflections differ).
+        # Interaural level difference within 2 dB: the conference room's reflections of the
+        # first 11.6 ms (512 taps) are part of the measured response (0.1-1.5 dB here).
         ild = lambda h: 10 * np.log10(np.sum(h[0] ** 2) / np.sum(h[1] ** 2))  # noqa: E731
-        assert abs(ild(got) - ild(true)) < 1.5
+        assert abs(ild(got) - ild(true)) < 2.0
         # The direct sound's waveform: normalized cross-correlation of the first 150
         # samples of the left ear at the best lag >= 0.85 (the late tail and the noises leak
         # into a 0.6 s estimate).
@@ -36,3 +37,31 @@ def test_measure_errors(tmp_path):
         measure_hrtf(out=tmp_path / "x.wav", progress=False)
     with pytest.raises(ConfigError, match="distance"):
         measure_hrtf(distance_m=10.0, out=tmp_path / "x.sofa", progress=False)
+
+
+def test_a_short_measured_response_is_the_room_s_response_cut_there(tmp_path, kemar):
+    """taps=128 (2.2 ms after the sound reaches the head centre): a gate that keeps the
+    direct sound and drops the conference room's reflections, so the measured ILD per
+    frequency follows the ears'. With Welch segments of 2 * taps (the first version) the
+    estimate was smoothed over the room's reverberation instead: mean |ILD error| over
+    0.5-12 kHz on these 6 directions 8.8 dB, against 1.7 dB with the 8192-sample segments."""
+    out = tmp_path / "gated.sofa"
+    measure_hrtf(hrtf=kemar, room="conference", distance_m=1.5, seconds=0.6, taps=128, max_directions=6, out=out,
+                 progress=False)
+    measured = HRTF.load(out)
+    f = np.fft.rfftfreq(2048, 1 / 44100)
+    band = (f > 500) & (f < 12000)
+
+    def ild_db(h):
+        spec = np.abs(np.fft.rfft(h, 2048, axis=-1)) + 1e-12
+        return 20 * np.log10(spec[0] / spec[1])[band]
+
+    errors = [np.mean(np.abs(ild_db(measured.hrir[i]) - ild_db(kemar.hrir[kemar.nearest_index(measured.directions[i : i + 1])[0]])))
+              for i in range(measured.n_directions)]
+    assert np.mean(errors) < 3.0, errors
+    # Broadband, the gated response's ILD is within 1 dB of the ears' (0.1-0.7 dB here; with
+    # the reflections of 512 taps up to 1.5 dB, the test above).
+    for i in range(measured.n_directions):
+        true = kemar.hrir[kemar.nearest_index(measured.directions[i : i + 1])[0]]
+        level = lambda h: 10 * np.log10(np.sum(h[0] ** 2) / np.sum(h[1] ** 2))  # noqa: E731
+        assert abs(level(measured.hrir[i]) - level(true)) < 1.0

@@ -21,16 +21,17 @@ noise_power) -> unit vector`` (:data:`AudioEstimator`): :func:`first_wavefront` 
 streaming pipeline's precedence rule (:mod:`~acoustic_sim.auditory.precedence`) applied to the
 loudspeaker's onset, so the room table shows what it does against the paper's frames.
 
-Why the room's top-bottom accuracy stays low (measured 2026-12-03 with the ``paper`` banks,
-musashi ears, 25 median-plane elevations x 4 trials): at 1.5 m the lab's reverberant field
-is stronger than the direct sound (critical distance about 1.0 m for 90 m^3 at RT60 0.3 s;
-the frames' interaural coherence is 0.3-0.6 above 2.5 kHz), so the frames' cues are mostly
-the room's. A bank trained on the world's own (free-field) HRTF gives top-bottom 0.96 on
-the frames in the anechoic room but 0.50 in the lab; on the onset's first wavefront, 0.79
+Why the frames lose the median plane in the room (measured 2026-12-03 with the ``paper``
+banks, musashi ears, 25 median-plane elevations x 4 trials): at 1.5 m the lab's reverberant
+field is stronger than the direct sound (critical distance about 1.0 m for 90 m^3 at RT60
+0.3 s; the frames' interaural coherence is 0.3-0.6 above 2.5 kHz), so the frames' cues are
+mostly the room's. A bank trained on the world's own (free-field) HRTF gives top-bottom 0.96
+on the frames in the anechoic room but 0.50 in the lab; on the onset's first wavefront 0.79
 in the lab (windows of 3, 5, 8 ms: 0.84, 0.86, 0.82). The paper's setting adds a second
-mismatch: the bank learns the HRTF measured in the conference room, whose early
-reflections are not the lab's (frames about 0.6, first wavefront 0.77; windows of 3-12 ms
-no better). The bank of an HRTF measured with 128 taps (reflections cut) was at chance.
+mismatch when the measured responses keep the conference room's early reflections, which
+are not the lab's: with 512 taps (11.6 ms) frames gave about 0.6 and the first wavefront
+0.77; cut at 128 taps before the first reflection
+(:data:`~acoustic_sim.experiments.paper.MEASURED_TAPS`), 0.64 and 0.84 on the same trials.
 """
 
 from __future__ import annotations
