@@ -1,7 +1,13 @@
 import numpy as np
 import pytest
 
-from acoustic_sim.acoustics.hrtf import HRTF
+from acoustic_sim.world.snapshot import choose_gl_backend
+
+# An offscreen OpenGL backend, chosen before any test module imports MuJoCo (several do at
+# collection): otherwise MuJoCo falls back to GLFW, which warns without a display.
+choose_gl_backend()
+
+from acoustic_sim.acoustics.hrtf import HRTF  # noqa: E402
 
 
 @pytest.fixture(scope="session")
