@@ -192,7 +192,7 @@ def first_wavefront(bank, *, leakage: float = LEAKAGE) -> AudioEstimator:
     whose bins also decide validity (:func:`valid_bins` against ``noise_power``). The
     streaming pipeline tests validity on the frame the window completes in, which for a
     loudspeaker switched on holds only the first milliseconds of it: on the room's median
-    plane (measured-HRTF bank, 100 trials) that left few valid bins and top-bottom 0.61,
+    plane (the 512-tap measured bank, 100 trials) that left few valid bins and top-bottom 0.61,
     against 0.77 with the first whole frame. A recording with no onset, or no valid bin,
     gives straight ahead (no information, as for silence).
     """
