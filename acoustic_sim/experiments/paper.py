@@ -113,7 +113,8 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     # rule (SSDENet on the loudspeaker's first wavefront), with the same bank.
     room = localization.room(ears, _estimators(measured, mgrid, mbank), rng=rng, quick=quick, progress=progress,
                              audio_estimators={"ssdenet-wavefront": localization.first_wavefront(mbank)})
-    room.update(level_db_spl=[73.0, 76.0], distance_m=1.5, room="lab", trained_on=f"{measured.name} ({measured.ident})")
+    room.update(level_db_spl=[73.0, 76.0], distance_m=1.5, room="lab", trained_on=f"{measured.name} ({measured.ident})",
+                measured_taps=MEASURED_TAPS, measured_in="conference")
     timings["room_s"] = time.perf_counter() - t
     loc = {"simulation": simulation, "room": room, "hrtf": ears.name, "profile": profile, "quick": quick,
            "directions": len(grid) if directions is None else len(directions), "paper_claim": PAPER_CLAIMS["simulation"]}

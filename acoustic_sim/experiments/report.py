@@ -70,8 +70,9 @@ def tables(out) -> str:
     lines += [
         "",
         f"**Localization in the {room['room']} room** (white noise {room['level_db_spl'][0]:.0f}-"
-        f"{room['level_db_spl'][1]:.0f} dB SPL at {room['distance_m']} m; models from {room['trained_on']}; "
-        f"{room.get('trials_per_angle', 1)} trial(s) per angle):",
+        f"{room['level_db_spl'][1]:.0f} dB SPL at {room['distance_m']} m; models from {room['trained_on']}"
+        + (f", measured in the {room['measured_in']} room with {room['measured_taps']} taps" if "measured_taps" in room else "")
+        + f"; {room.get('trials_per_angle', 1)} trial(s) per angle):",
         "",
         "| metric | " + " | ".join(LABELS.get(k, k) for k in keys) + " |",
         "|---|" + "---|" * len(keys),
