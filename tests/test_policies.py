@@ -35,7 +35,8 @@ PARKING_BRAKE = (
     "auditory pipeline: over these 20 episodes the fast models reach 0.85 success and no false release in "
     "ParkingBrake, not 0.9: seeds 103, 106 and 115 are late (a first tooth's click missed or misplaced under the "
     "relay, the key turn or the radio, and the next tooth comes 0.58 s later). With the previous fast MelCNN "
-    "(8 filters, 64 units) 0.75 (issue 5 report; paper models: results/tasks)"
+    "(8 filters, 64 units) 0.75 (issue 5 report; paper models: results/tasks). Fast SSDENets of training seeds 1 "
+    "and 2: 0.60 with 0.15 false releases and 0.80 with 0.05 (FLOOR_SUCCESS)"
 )
 
 REVERSE_ALARM = (
@@ -43,7 +44,8 @@ REVERSE_ALARM = (
     "ReverseAlarm, not 0.9 with none: seed 100's false release is another vehicle's beeper on the left, placed at "
     "the alarm's front-back mirror image from the turned head, a direction the scripted policy accepts because the "
     "ears cannot tell it from the alarm; 116 is late (a first beep placed elsewhere, the next one after 1.0 s). "
-    "Paper models: results/tasks"
+    "Paper models: results/tasks. Fast SSDENets of training seeds 1 and 2: 0.60 and 0.75, one false release each "
+    "(FLOOR_SUCCESS)"
 )
 
 
@@ -149,13 +151,14 @@ def test_scripted_parking_brake_targets(envs, hearing):
     assert summary["median_reaction_s"] <= 0.3, summary
 
 
-FLOOR_SUCCESS = 0.70
-FLOOR_FALSE_RELEASES = 0.10
-"""The fast models' floor in the cabin tasks over these 20 episodes: measured 0.90 success with
-0.05 false releases (ReverseAlarm) and 0.85 with none (ParkingBrake), less three or four
-episodes of slack for the models CI trains on another CPU (training is bit-identical on one
-machine only; variants of the fast SSDENet trained here gave 15-18 of 20, and 13 of 20 with
-three false releases for one that localized worse between grid directions)."""
+FLOOR_SUCCESS = 0.55
+FLOOR_FALSE_RELEASES = 0.20
+"""The fast models' floor in the cabin tasks over these 20 episodes. The fast SSDENet's
+training seed moves them a lot (this machine, same recipe, seeds 0 / 1 / 2: ReverseAlarm
+18 / 12 / 15 of 20 with one false release each, ParkingBrake 17 / 12 / 16 with 0 / 3 / 1;
+median reactions 0.09-0.15 s and 0.05-0.07 s), and CI trains its own models on another
+CPU, which is another draw. ``blind`` on the same episodes: 10 and 5 of 20, false
+releases 0.50 and 0.75. The floor sits below the worst seed and well above ``blind``."""
 
 
 @pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
