@@ -182,6 +182,12 @@ def frames_after(audio: np.ndarray, start: int) -> np.ndarray:
     return frames.spectra[ends - N_FFT >= start]
 
 
+def straight_ahead(grid: DirectionGrid) -> np.ndarray:
+    """The grid direction nearest to straight ahead: every method's answer when a recording
+    gives it nothing to estimate from (silence, no valid bin, no onset)."""
+    return grid.vectors[grid.nearest(np.array([1.0, 0.0, 0.0]))]
+
+
 def first_wavefront(bank, *, leakage: float = LEAKAGE) -> AudioEstimator:
     """SSDENet on the first wavefront of a recording's strongest onset: the streaming
     pipeline's precedence rule (``precedence="wavefront"``, :class:`FirstWavefront` with its
@@ -197,21 +203,19 @@ def first_wavefront(bank, *, leakage: float = LEAKAGE) -> AudioEstimator:
     gives straight ahead (no information, as for silence).
     """
     short_ok = bin_frequencies()[bank.bins] >= FirstWavefront().min_hz
-    ahead = bank.grid.vectors[bank.grid.nearest(np.array([1.0, 0.0, 0.0]))]
+    ahead = straight_ahead(bank.grid)
 
     def estimate(audio, noise_power):
         fw = FirstWavefront()
         fw.push(audio)
         taken = fw.take_onset(audio.shape[1])
-        frames = analyze(audio)
-        ends = np.asarray(frame_end_sample(frames.index), dtype=np.int64)
-        k = int(np.searchsorted(ends - N_FFT, taken[0])) if taken is not None else len(frames)
-        if k >= len(frames):
+        after = frames_after(audio, taken[0]) if taken is not None else ()
+        if len(after) == 0:
             return ahead
-        x = frames.spectra[k].copy()
+        frame = after[0]  # the first frame wholly after the onset
+        x = frame.copy()
         x[:, bank.bins[short_ok]] = taken[1][:, bank.bins[short_ok]]
-        valid = valid_bins(frames.spectra[k], noise_power, class_bins=bank.bins, leakage=leakage)
-        est = bank.estimate(x, valid)
+        est = bank.estimate(x, valid_bins(frame, noise_power, class_bins=bank.bins, leakage=leakage))
         return ahead if est is None else est.vector
 
     return estimate

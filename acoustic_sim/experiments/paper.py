@@ -49,12 +49,13 @@ def _estimators(hrtf: HRTF, grid: DirectionGrid, bank: SSDENetBank) -> dict:
     """The three methods as ``(spectra, noise_power) -> unit vector``."""
     music = Music(hrtf, grid)
     gcc = GccPhat(hrtf)
+    ahead = localization.straight_ahead(grid)
 
     def ssdenet(spectra, noise):
         est = bank.estimate(spectra, valid_bins(spectra, noise, class_bins=bank.bins, leakage=LEAKAGE))
         # No valid bin (the source is below the noise everywhere): no information, so the
         # estimate is straight ahead, as for the baselines on silence.
-        return grid.vectors[grid.nearest(np.array([1.0, 0.0, 0.0]))] if est is None else est.vector
+        return ahead if est is None else est.vector
 
     return {
         "ssdenet": ssdenet,
