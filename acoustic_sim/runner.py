@@ -111,8 +111,31 @@ def run_episode(env, policy, seed: int, *, episode: int = 0, step_callback=None)
     return record
 
 
+CONFIDENCE = 0.95
+"""Level of the intervals around the rates (:func:`rate_interval`)."""
+
+
+def rate_interval(k: int, n: int, confidence: float = CONFIDENCE) -> list[float] | None:
+    """Wilson score interval ``[low, high]`` of a rate of ``k`` in ``n`` episodes (None for n = 0).
+
+    Episodes are Bernoulli trials, so a rate from 20 or 30 of them is a draw: 28 of 30 is
+    0.93 with a 95 % interval of 0.79-0.98, and 0 of 30 still allows 0.11. Wilson's interval
+    (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``) keeps its level near
+    nominal at 0 and n, where the normal approximation collapses to a point.
+    """
+    if n <= 0:
+        return None
+    if not 0 <= k <= n:
+        raise ConfigError(f"rate_interval: k must be within 0..{n}, got {k}")
+    from scipy.stats import binomtest
+
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=confidence, method="wilson")
+    return [round(float(ci.low), 4), round(float(ci.high), 4)]
+
+
 def summarize(records: list[dict]) -> dict:
-    """success_rate, median_reaction_s, false_release_rate and the outcome counts."""
+    """success_rate, median_reaction_s, false_release_rate (each rate with its 95 % Wilson
+    interval, ``*_ci95``) and the outcome counts."""
     n = len(records)
     reactions = [r["reaction_s"] for r in records if r["reaction_s"] is not None]
     outcomes: dict[str, int] = {}
@@ -120,11 +143,15 @@ def summarize(records: list[dict]) -> dict:
         outcomes[r["outcome"]] = outcomes.get(r["outcome"], 0) + 1
     steps = sum(r["steps"] for r in records)
     wall = sum(r["wall_s"] for r in records)
+    successes = sum(bool(r["success"]) for r in records)
+    false_releases = sum(bool(r["false_release"]) for r in records)
     return {
         "episodes": n,
-        "success_rate": round(sum(r["success"] for r in records) / n, 4) if n else None,
+        "success_rate": round(successes / n, 4) if n else None,
+        "success_rate_ci95": rate_interval(successes, n),
         "median_reaction_s": round(statistics.median(reactions), 4) if reactions else None,
-        "false_release_rate": round(sum(r["false_release"] for r in records) / n, 4) if n else None,
+        "false_release_rate": round(false_releases / n, 4) if n else None,
+        "false_release_rate_ci95": rate_interval(false_releases, n),
         "outcomes": outcomes,
         "env_steps": steps,
         "wall_s": round(wall, 2),
@@ -242,10 +269,14 @@ def summary_table(result: dict) -> str:
     def fmt(v, unit=""):
         return "-" if v is None else (f"{v:.3f}{unit}" if isinstance(v, float) else f"{v}{unit}")
 
+    def rate(key):
+        ci = s.get(f"{key}_ci95")
+        return fmt(s[key]) + ("" if ci is None else f" (95 % {ci[0]:.2f}-{ci[1]:.2f})")
+
     rows = [
         ("task", result["task"]), ("policy", result["policy"]), ("profile", result["profile"]),
-        ("episodes", fmt(s["episodes"])), ("success_rate", fmt(s["success_rate"])),
-        ("median_reaction_s", fmt(s["median_reaction_s"], " s")), ("false_release_rate", fmt(s["false_release_rate"])),
+        ("episodes", fmt(s["episodes"])), ("success_rate", rate("success_rate")),
+        ("median_reaction_s", fmt(s["median_reaction_s"], " s")), ("false_release_rate", rate("false_release_rate")),
         ("outcomes", ", ".join(f"{k} {v}" for k, v in sorted(s["outcomes"].items()))),
         ("env_steps_per_s", fmt(s["env_steps_per_s"])),
     ]

@@ -71,8 +71,7 @@ class CabinLeverTask(HearingTaskEnv):
     (fast models) the horn's onsets put 0.03-0.15 there, the radio's 0.04-0.14, the alarm's
     first beeps (with the slide) 0.39-0.91 and the other vehicle's beeps 0.35-0.87. Over the
     test suite's 20 episodes (fast models) the outcomes are the same with either design
-    (0.85 success, 0.05 false releases); the 30 episodes of ``results/tasks`` (paper) are the
-    added-energy design's."""
+    (0.85 success, 0.05 false releases); ``results/tasks`` (paper) is the added-energy design's."""
     onset_windows = 3
     """Precedence: the reverse alarm's beeps ramp up over 2-8 ms and each gives one onset, so
     one direction sample per beep (0.8-1.1 s apart: a first beep placed wrong makes the

@@ -191,8 +191,26 @@ def test_run_episodes_writes_episodes_json_and_a_table(tmp_path, capsys):
     assert [r["seed"] for r in data["records"]] == [3, 4]
     for key in ("success_rate", "median_reaction_s", "false_release_rate"):
         assert key in data["summary"]
+    s = data["summary"]
+    assert s["success_rate_ci95"] == runner.rate_interval(round(2 * s["success_rate"]), 2)
+    assert s["false_release_rate_ci95"] == runner.rate_interval(round(2 * s["false_release_rate"]), 2)
     out = capsys.readouterr().out
-    assert "success_rate" in out and "false_release_rate" in out
+    assert "success_rate" in out and "false_release_rate" in out and "(95 % " in out
+
+
+def test_rate_interval_is_wilson_s():
+    # Wilson's score interval, closed form: (p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n).
+    z = 1.959964
+    for k, n in ((28, 30), (18, 20), (0, 30), (20, 20), (1, 2)):
+        p = k / n
+        centre, half = p + z * z / (2 * n), z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+        expect = [(centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)]
+        assert runner.rate_interval(k, n) == pytest.approx(expect, abs=1e-4)
+    assert runner.rate_interval(28, 30) == pytest.approx([0.7868, 0.9815], abs=1e-4)
+    assert runner.rate_interval(0, 30)[0] == 0.0 and runner.rate_interval(0, 30)[1] > 0.1  # no false release in 30 still allows 11 %
+    assert runner.rate_interval(0, 0) is None
+    with pytest.raises(ConfigError, match="within 0..5"):
+        runner.rate_interval(6, 5)
 
 
 def test_run_command_line(tmp_path):

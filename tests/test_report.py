@@ -87,6 +87,7 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
         assert r["episodes"] == 1 and r["success_rate"] in (0.0, 1.0) and sum(r["outcomes"].values()) == 1
+        assert r["success_rate_ci95"][0] <= r["success_rate"] <= r["success_rate_ci95"][1]
         assert (tmp_path / r["task"] / r["policy"] / "episodes.json").is_file()
     table = tasks.table(tmp_path)
     assert table.count("\n| ") == 1 + 9 and "| call-response | blind |" in table  # header and one row each

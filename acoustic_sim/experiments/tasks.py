@@ -24,7 +24,7 @@ POLICIES = ("scripted", "oracle", "blind")
 
 BEGIN, END = "<!-- tasks:begin -->", "<!-- tasks:end -->"
 
-EPISODES = 30
+EPISODES = 100
 """Episodes per task and policy of a full run (``--quick``: 3, fast models)."""
 
 
@@ -59,8 +59,9 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
             result = run_episodes(task, policy, episodes, seed, out / task / policy, profile=profile, progress=progress)
             s = result["summary"]
             rows.append({"task": task, "policy": policy, "episodes": len(result["records"]),
-                         "success_rate": s["success_rate"], "false_release_rate": s["false_release_rate"],
-                         "median_reaction_s": s["median_reaction_s"], "outcomes": s["outcomes"]})
+                         "success_rate": s["success_rate"], "success_rate_ci95": s["success_rate_ci95"],
+                         "false_release_rate": s["false_release_rate"],
+                         "false_release_rate_ci95": s["false_release_rate_ci95"], "median_reaction_s": s["median_reaction_s"], "outcomes": s["outcomes"]})
     data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
     write_json(out / "tasks.json", data)
     report(out)
@@ -101,17 +102,26 @@ def figure(out) -> Path:
     for ax, (key, label, ylim) in zip(axes, panels):
         for i, policy in enumerate(POLICIES):
             vals = [cell[t, policy][key] for t in task_names]
+            cis = [cell[t, policy].get(f"{key}_ci95") for t in task_names]
+            err = None
+            if any(c is not None for c in cis):  # the 95 % interval of a rate
+                err = np.array([[np.nan, np.nan] if c is None or v is None else [v - c[0], c[1] - v]
+                                for v, c in zip(vals, cis)]).T
             bars = ax.bar(x + (i - (len(POLICIES) - 1) / 2) * width, [np.nan if v is None else v for v in vals],
-                          width=width, label=policy)
-            for b, v in zip(bars, vals):
-                ax.annotate("n/a" if v is None else f"{v:.2f}", (b.get_x() + b.get_width() / 2, 0 if v is None else v),
+                          width=width, label=policy, yerr=err, error_kw={"elinewidth": 0.7, "capsize": 1.5})
+            for b, v, c in zip(bars, vals, cis):
+                top = 0 if v is None else (v if c is None else c[1])  # above the interval's bar
+                ax.annotate("n/a" if v is None else f"{v:.2f}", (b.get_x() + b.get_width() / 2, top),
                             ha="center", va="bottom", fontsize=6)
         ax.set_xticks(x, task_names, fontsize=8)
         ax.set_title(label, fontsize=9)
         if ylim:
             ax.set_ylim(*ylim)
+        else:
+            ax.set_ylim(0, ax.get_ylim()[1] * 1.08)
     axes[1].legend(fontsize=7, loc="upper left")
-    fig.suptitle(f"Tasks, {data['episodes']} episodes per policy ({data['profile']} models)", fontsize=10)
+    fig.suptitle(f"Tasks, {data['episodes']} episodes per policy ({data['profile']} models; bars: 95 % intervals "
+                 "of the rates)", fontsize=10)
     fig.tight_layout()
     path = out / FIGURE
     fig.savefig(path, dpi=110)
@@ -126,8 +136,10 @@ def _load(out: Path) -> dict:
     return json.loads(path.read_text())
 
 
-def _rate(v) -> str:
-    return "n/a" if v is None else f"{v:.2f}"
+def _rate(v, ci=None) -> str:
+    if v is None:
+        return "n/a"
+    return f"{v:.2f}" + ("" if ci is None else f" ({ci[0]:.2f}-{ci[1]:.2f})")
 
 
 def table(out) -> str:
@@ -136,7 +148,8 @@ def table(out) -> str:
     lines = [
         f"{data['episodes']} episodes per task and policy (seeds {data['seed']}-{data['seed'] + data['episodes'] - 1}, "
         f"`{data['profile']}` models). Reaction: from the sound's start to letting go (the cabin) or to the "
-        "person in view (the room). A false release lets go on a distractor.",
+        "person in view (the room). A false release lets go on a distractor. In brackets: the rate's 95 % "
+        "interval (Wilson; the episodes are a sample of the task's random draws).",
         "",
         "| task | policy | success | false releases | median reaction (s) | outcomes |",
         "|---|---|---|---|---|---|",
@@ -144,7 +157,8 @@ def table(out) -> str:
     for r in data["rows"]:
         outcomes = ", ".join(f"{k} {v}" for k, v in sorted(r["outcomes"].items()))
         react = "n/a" if r["median_reaction_s"] is None else f"{r['median_reaction_s']:.2f}"
-        lines.append(f"| {r['task']} | {r['policy']} | {_rate(r['success_rate'])} | {_rate(r['false_release_rate'])} "
+        lines.append(f"| {r['task']} | {r['policy']} | {_rate(r['success_rate'], r.get('success_rate_ci95'))} "
+                     f"| {_rate(r['false_release_rate'], r.get('false_release_rate_ci95'))} "
                      f"| {react} | {outcomes} |")
     return "\n".join(lines)
 
