@@ -179,10 +179,13 @@ class ScriptedReverseAlarm(LeverPolicy):
     energy did not rise 8 times (:class:`~acoustic_sim.auditory.precedence.FirstWavefront`);
     in three (152, 157, 158) it was placed outside the accepted region. Onsets detected per
     octave band as well (1-16 kHz, a rise in any band counts; a ``/tmp`` patch of
-    ``FirstWavefront.push``), measured and not taken: 92/100 with one false release (102),
-    the extra onsets giving the distractors more chances to be placed in front, and four
-    more filters per block (about 0.1 ms each here, against the fast env's 3.2 ms step);
-    third-octave bands brought 6 of the 11 in, with a false release (147). On seeds 100-129
+    ``FirstWavefront.push``), measured and not taken: paper models, seeds 100-299, 186/200
+    on time against 179/200, but one false release against none (102: another vehicle's
+    beeper on the left, accepted at its front-back mirror image once it gets more onsets);
+    fast models, 100-199, 86/100 with 3 false releases against 84 with 2; ParkingBrake (paper,
+    100-199) 86/100 with 2 false releases against 89 with none (the relay's and the key's
+    clicks get more onsets too). It would also cost four more filters per block (about 0.1 ms
+    each here, against the fast env's 3.2 ms step). On seeds 100-129
     alone the same models give 0.93 (115, 116 late). Models trained where espeak-ng was
     missing (formant voices) gave 0.90 with a false release: 118 let go on another
     vehicle's beeper on the left (114 deg azimuth from the turned head), placed at its
