@@ -87,8 +87,8 @@ def add_parsers(sub) -> None:
         description="What hearing the direction is worth: runs each task (reverse-alarm, parking-brake, "
         "call-response) with each policy (scripted: from the percepts; oracle: from the ground truth; "
         "blind: classes without directions) on the same seeds, and writes OUT/<task>/<policy>/episodes.json, "
-        "OUT/tasks.json, OUT/REPORT.md (the table) and OUT/tasks.png (bar charts). A full run (100 episodes each, paper models) takes "
-        "about 13 minutes on 2 cores; the rates come with their 95 % intervals.",
+        "OUT/tasks.json, OUT/REPORT.md (the table) and OUT/tasks.png (bar charts), the rates with their 95 % "
+        "intervals. A full run (100 episodes each, paper models) takes about 14 minutes on 2 cores.",
     )
     et.add_argument("--out", type=Path, required=True, help="output folder")
     et.add_argument("--profile", default="paper", choices=("paper", "fast"), help="model size (default paper)")

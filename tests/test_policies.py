@@ -209,7 +209,8 @@ def test_rate_interval_is_wilson_s():
         expect = [(centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)]
         assert runner.rate_interval(k, n) == pytest.approx(expect, abs=1e-4)
     assert runner.rate_interval(28, 30) == pytest.approx([0.7868, 0.9815], abs=1e-4)
-    assert runner.rate_interval(0, 30)[0] == 0.0 and runner.rate_interval(0, 30)[1] > 0.1  # no false release in 30 still allows 11 %
+    # No false release in 30 episodes still allows a rate of 11 %.
+    assert runner.rate_interval(0, 30)[0] == 0.0 and runner.rate_interval(0, 30)[1] > 0.1
     assert runner.rate_interval(0, 0) is None
     with pytest.raises(ConfigError, match="within 0..5"):
         runner.rate_interval(6, 5)

@@ -59,9 +59,8 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
             result = run_episodes(task, policy, episodes, seed, out / task / policy, profile=profile, progress=progress)
             s = result["summary"]
             rows.append({"task": task, "policy": policy, "episodes": len(result["records"]),
-                         "success_rate": s["success_rate"], "success_rate_ci95": s["success_rate_ci95"],
-                         "false_release_rate": s["false_release_rate"],
-                         "false_release_rate_ci95": s["false_release_rate_ci95"], "median_reaction_s": s["median_reaction_s"], "outcomes": s["outcomes"]})
+                         **{k: s[k] for k in ("success_rate", "success_rate_ci95", "false_release_rate",
+                                              "false_release_rate_ci95", "median_reaction_s", "outcomes")}})
     data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
     write_json(out / "tasks.json", data)
     report(out)
