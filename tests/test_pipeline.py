@@ -13,6 +13,7 @@ from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.percept import Percept
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
+from acoustic_sim.auditory.precedence import FirstWavefront
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, rotation_zyx, sph_to_vec
 from detectors import AlwaysDetects
@@ -149,6 +150,7 @@ def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
     room = loc["room"]
     for key in ("horizontal_mean_deg", "median_mean_deg", "lr_accuracy", "tb_accuracy", "front_back_confusion"):
         assert set(room[key]) == {"ssdenet", "music", "gcc-phat", "ssdenet-wavefront"}, key
+    assert room["wavefront_windows"] == 3
     det = json.loads((out / "detection.json").read_text())
     assert 0 <= det["f1_macro"] <= 1 and set(det["per_class"]) == set(sounds.SOUND_CLASSES)
     assert "| signal |" in (out / "REPORT.md").read_text()
@@ -386,8 +388,9 @@ def test_first_wavefront_hears_the_loudspeaker_switch_on_in_the_lab(pipe, kemar)
     onset. In the reverberant lab the frames' cues pull lateral sources toward the median
     plane (fast banks of four training seeds, sources at +-60 and +-90 deg: mean lateral
     error 35-54 deg); the first wavefront is nearer (15-30 deg, at least 10 deg better with
-    each bank) and on the right side. A
-    recording of the background alone has no onset and gives straight ahead."""
+    each bank) and on the right side, with one window at the onset and with the room
+    experiment's three (ROOM_ONSET_WINDOWS). A recording of the background alone has no
+    onset and gives straight ahead."""
     from acoustic_sim.auditory.ssdenet import LEAKAGE, valid_bins
     from acoustic_sim.experiments import localization
 
@@ -395,11 +398,12 @@ def test_first_wavefront_hears_the_loudspeaker_switch_on_in_the_lab(pipe, kemar)
         return float(np.degrees(np.arcsin(np.clip(v[1], -1.0, 1.0))))
 
     est = localization.first_wavefront(pipe.ssdenet)
+    est3 = localization.first_wavefront(pipe.ssdenet, windows=localization.ROOM_ONSET_WINDOWS)
     bank = pipe.ssdenet
     rng = np.random.default_rng(3)
     noise = localization.noise_floor(kemar, rng=rng)
     start = int(round(localization.LEAD_S * SAMPLE_RATE))
-    err_wavefront, err_frames = [], []
+    err_wavefront, err_wavefront3, err_frames, looks = [], [], [], []
     for az in (90.0, -90.0, 60.0, -60.0):
         audio = localization.render_room_trial(kemar, sph_to_vec(az, 0.0), rng=rng)
         assert np.sqrt(np.mean(audio[:, start:] ** 2)) > 10 * np.sqrt(np.mean(audio[:, : start - 100] ** 2))
@@ -409,12 +413,20 @@ def test_first_wavefront_hears_the_loudspeaker_switch_on_in_the_lab(pipe, kemar)
         got = est(audio, noise)
         assert np.sign(lateral(got)) == np.sign(az), (az, got)
         err_wavefront.append(abs(lateral(got) - az))
+        got3 = est3(audio, noise)
+        assert np.sign(lateral(got3)) == np.sign(az), (az, got3)
+        err_wavefront3.append(abs(lateral(got3) - az))
+        fw = FirstWavefront(windows=localization.ROOM_ONSET_WINDOWS)
+        fw.push(audio)
+        looks.append(len(fw.take_onset(audio.shape[1])[1]))
         frames = bank.estimate(spectra, valid_bins(spectra, noise, class_bins=bank.bins, leakage=LEAKAGE))
         err_frames.append(abs(lateral(frames.vector) - az))
-    assert np.mean(err_wavefront) <= 35.0 and np.mean(err_wavefront) < np.mean(err_frames) - 5.0, (
-        err_wavefront, err_frames)
+    assert max(looks) == localization.ROOM_ONSET_WINDOWS, looks  # switching on is a rising onset
+    for errors in (err_wavefront, err_wavefront3):
+        assert np.mean(errors) <= 35.0 and np.mean(errors) < np.mean(err_frames) - 5.0, (errors, err_frames)
     quiet = localization.render_room_trial(kemar, sph_to_vec(90.0, 0.0), rng=rng, seconds=0.0, lead_s=0.5)[:, :20000]
-    assert np.allclose(est(quiet, noise), pipe.grid.vectors[pipe.grid.nearest(np.array([1.0, 0.0, 0.0]))])
+    for e in (est, est3):
+        assert np.allclose(e(quiet, noise), pipe.grid.vectors[pipe.grid.nearest(np.array([1.0, 0.0, 0.0]))])
 
 
 def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alone(pipe, kemar):

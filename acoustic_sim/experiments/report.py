@@ -81,10 +81,12 @@ def tables(out) -> str:
                            ("front_back_confusion", 3)):
         lines.append(f"| {metric} | " + " | ".join(_fmt(room[metric][k], digits) for k in keys) + " |")
     if "ssdenet-wavefront" in keys:
+        n = int(room.get("wavefront_windows", 1))
+        where = "a 1.75 ms window" if n == 1 else f"{n} windows of 1.75 ms, 1 ms apart,"
         lines += [
             "",
             "The paper's three methods use the frames after the loudspeaker has started; *SSDENet, first wavefront* "
-            "is the same bank on a 1.75 ms window at the loudspeaker's onset (the streaming pipeline's precedence rule, "
+            f"is the same bank on {where} at the loudspeaker's onset (the streaming pipeline's precedence rule, "
             "`acoustic_sim.experiments.localization.first_wavefront`), which most of the lab's reflections reach too late to enter.",
         ]
     lines += [
