@@ -354,9 +354,10 @@ sounds) gave 17.7-24.3 deg for the square wave and 17.3-22.6 deg for white noise
 through the same three bins, so more training does not reach 15 deg; nor do the next
 harmonics, which lie outside the networks' 300 Hz-12 kHz range: banks of this size on the
 musashi ears (327 directions, a ``/tmp`` script, 2026-12-03) on the three bins gave 21.3
-deg for the square wave, with a 14 kHz network as well 24.0, with 14 and 18 kHz 19.7. A pure tone off the lattice above
-1.8 kHz (a 2.25 kHz sine, a voice's upper harmonics) meets no network, and one below it
-only where the fill has a bin: a bank of a subset of bins cannot localise every tone.
+deg for the square wave, with a 14 kHz network as well 24.0, with 14 and 18 kHz 19.7.
+A pure tone off the lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper harmonics)
+meets no network, and one below it only where the fill has a bin: a bank of a subset of
+bins cannot localise every tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
 grid) is a virtual source, not only the 327 nearest to grid directions, so sources between
