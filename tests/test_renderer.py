@@ -6,6 +6,7 @@ import numpy as np
 import pyroomacoustics as pra
 import pytest
 
+from acoustic_sim.acoustics import hrtf_tables as tables_module
 from acoustic_sim.acoustics import renderer as renderer_module
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.reference import PRA_OFFSET, PraBinaural
@@ -357,13 +358,13 @@ def test_renderers_of_one_hrtf_share_its_tables_bit_for_bit(kemar, spherical, mo
             blocks.append(r.render_block())
         return r, np.concatenate(blocks, axis=1)
 
-    renderer_module.clear_hrtf_tables()
+    tables_module.clear_hrtf_tables()
     first, a = run()  # builds the tables
     second, b = run()  # finds them
     assert second.tables is first.tables and second.tables.ident == kemar.ident
     assert second._table is first._table and second._short is first._short and second._directions is first._directions
     assert np.array_equal(a, b)
-    renderer_module.clear_hrtf_tables()
+    tables_module.clear_hrtf_tables()
     third, c = run()  # freshly built again
     assert third.tables is not first.tables and np.array_equal(a, c)
     with pytest.raises(ValueError, match="read-only"):
@@ -374,7 +375,7 @@ def test_renderers_of_one_hrtf_share_its_tables_bit_for_bit(kemar, spherical, mo
     with pytest.raises(ConfigError, match="reflection_taps"):
         BinauralRenderer(kemar, room, rng=np.random.default_rng(0), reflection_taps=2)
     # Another HRTF has its own; only the most recently used are kept.
-    monkeypatch.setattr(renderer_module, "HRTF_TABLES_KEPT", 1)
+    monkeypatch.setattr(tables_module, "HRTF_TABLES_KEPT", 1)
     other = BinauralRenderer(spherical, room, rng=np.random.default_rng(0))
     assert other.tables is not third.tables and other.tables.ident == spherical.ident
-    assert renderer_module.hrtf_tables(kemar) is not third.tables  # evicted, so built anew
+    assert tables_module.hrtf_tables(kemar) is not third.tables  # evicted, so built anew
