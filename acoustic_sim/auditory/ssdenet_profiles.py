@@ -278,8 +278,8 @@ lie all harmonics of the paper's fundamentals (0.5, 1 and 2 kHz), and densely en
 back; the low ERB fill keeps the interaural phase of lateral directions, unambiguous only
 below about 1.5 kHz, sampled every 65-200 Hz. The full ``eval paper`` run (musashi ears,
 ``results/paper``, with the validity rule's leakage test,
-:data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`): SSDENet below MUSIC on all 13 signals (triangle 500 Hz 4.9 against 17.0 deg, white noise 4.5 against
-8.3; banks trained on this machine's CPU, 2026-12-03; an earlier machine's gave 5.3 and
+:data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`): SSDENet below MUSIC on all 13 signals
+(triangle 500 Hz 4.9 against 17.0 deg, white noise 4.5 against 8.3; banks trained on this machine's CPU, 2026-12-03; an earlier machine's gave 5.3 and
 4.2); the narrowest margin is the 2 kHz sine (42.7 against 44.0), a single bin, where the
 lattice changes nothing. Above 15 deg among the broadband signals: square 2 kHz, 20.8 deg
 (21.5 with the earlier machine's banks): its harmonics up to 12 kHz meet three networks (2, 6 and
