@@ -427,6 +427,9 @@ def test_first_wavefront_hears_the_loudspeaker_switch_on_in_the_lab(pipe, kemar)
     quiet = localization.render_room_trial(kemar, sph_to_vec(90.0, 0.0), rng=rng, seconds=0.0, lead_s=0.5)[:, :20000]
     for e in (est, est3):
         assert np.allclose(e(quiet, noise), pipe.grid.vectors[pipe.grid.nearest(np.array([1.0, 0.0, 0.0]))])
+    for bad in (0, 1.5):
+        with pytest.raises(ConfigError, match="windows"):
+            localization.first_wavefront(bank, windows=bad)
 
 
 def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alone(pipe, kemar):
