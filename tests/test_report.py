@@ -55,6 +55,31 @@ def test_eval_readme_command(tmp_path):
         assert bad.returncode != 0 and match in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
 
 
+def test_targets_table_is_computed_from_the_run():
+    """Each target's verdict follows the numbers: met, missed, or met by one room estimator only."""
+    from acoustic_sim.experiments.report import targets
+
+    def run(square_2k, tb_frames, tb_wavefront, f1):
+        sim = [{"signal": s, "f0_hz": f, "ssdenet_deg": 5.0, "music_deg": 9.0}
+               for s, f in (("sine", 500.0), ("square", 500.0), ("sawtooth", 2000.0), ("white_noise", None))]
+        sim.append({"signal": "square", "f0_hz": 2000.0, "ssdenet_deg": square_2k, "music_deg": 30.0})
+        room = {"lr_accuracy": {"ssdenet": 1.0, "music": 0.5, "ssdenet-wavefront": 0.98},
+                "tb_accuracy": {"ssdenet": tb_frames, "music": 0.99, "ssdenet-wavefront": tb_wavefront}}
+        return targets({"simulation": sim, "room": room}, {"f1_macro": f1})
+
+    good = run(14.9, 0.85, 0.9, 0.90)
+    assert [r["experiment"] for r in good] == ["simulation", "simulation", "room", "room", "detection"]
+    assert "top-bottom" in good[3]["target"]
+    assert all(r["met"] is True for r in good), good
+    bad = run(20.8, 0.72, 0.87, 0.89)
+    assert [r["met"] for r in bad] == [True, False, True, "first wavefront only", False], bad
+    assert bad[1]["result"] == "over: square 2000 Hz 20.8 deg"
+    assert bad[3]["result"] == "on the frames 0.720, first wavefront 0.870"
+    assert run(14.0, 0.5, 0.5, 0.95)[3]["met"] is False
+    # SSDENet above MUSIC on one signal: that target is missed.
+    assert run(31.0, 0.9, 0.9, 0.95)[0]["met"] is False
+
+
 # -- the task results section (acoustic-sim eval tasks) ---------------------------------------------
 
 TASKS = ROOT / "results" / "tasks"
