@@ -115,7 +115,9 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
         assert r["success_rate_ci95"][0] <= r["success_rate"] <= r["success_rate_ci95"][1]
         assert (tmp_path / r["task"] / r["policy"] / "episodes.json").is_file()
     table = tasks.table(tmp_path)
-    assert table.count("\n| ") == 1 + 9 and "| call-response | blind |" in table  # header and one row each
+    # The targets table (header and nine targets), then the results (header and one row per task and policy).
+    assert table.count("\n| ") == (1 + 9) + (1 + 9) and "| call-response | blind |" in table
+    assert "| parking-brake | blind: false releases" in table
     assert (tmp_path / "REPORT.md").read_text().endswith(table + "\n\n![tasks](tasks.png)\n")
     assert (tmp_path / "tasks.png").stat().st_size > 10_000
     readme = tmp_path / "README.md"
@@ -130,3 +132,29 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "acoustic_sim.cli", "eval", "tasks", "--out", str(tmp_path / "x"),
                           "--episodes", "0"], capture_output=True, text=True)
     assert bad.returncode != 0 and "--episodes" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
+
+
+def test_task_targets_follow_the_summaries():
+    """The task targets table: success, reaction, no false release for scripted; blind's
+    false releases must have an interval above 0."""
+    from acoustic_sim.experiments.tasks import targets
+
+    def row(task, policy, success, fr, fr_ci, react):
+        return {"task": task, "policy": policy, "success_rate": success, "success_rate_ci95": None,
+                "false_release_rate": fr, "false_release_rate_ci95": fr_ci, "median_reaction_s": react}
+
+    data = {"rows": [
+        row("reverse-alarm", "scripted", 0.9, 0.0, [0.0, 0.04], 0.5),
+        row("reverse-alarm", "blind", 0.7, 0.3, [0.2, 0.4], 0.1),
+        row("parking-brake", "scripted", 0.89, 0.01, [0.0, 0.05], 0.31),
+        row("parking-brake", "blind", 0.95, 0.02, [0.0, 0.07], 0.1),
+        row("call-response", "scripted", 1.0, 0.0, None, 12.0),
+    ]}
+    got = [(r["task"], r["target"].split(":")[0], r["met"]) for r in targets(data)]
+    assert got == [
+        ("reverse-alarm", "scripted", True), ("reverse-alarm", "scripted", True), ("reverse-alarm", "scripted", True),
+        ("reverse-alarm", "blind", True),
+        ("parking-brake", "scripted", False), ("parking-brake", "scripted", False), ("parking-brake", "scripted", False),
+        ("parking-brake", "blind", False),
+        ("call-response", "scripted", True),
+    ], got

@@ -141,10 +141,71 @@ def _rate(v, ci=None) -> str:
     return f"{v:.2f}" + ("" if ci is None else f" ({ci[0]:.2f}-{ci[1]:.2f})")
 
 
+SUCCESS_MIN = 0.9
+"""Target: the scripted policy's success rate in every task."""
+
+REACTION_MAX_S = {"reverse-alarm": 0.5, "parking-brake": 0.3}
+"""Target: the scripted policy's median reaction in the cabin tasks (s; in the room a success
+is the person in view within 30 s)."""
+
+WHY = {
+    "reverse-alarm": "`policies.scripted.ScriptedReverseAlarm`",
+    "parking-brake": "`policies.scripted.ScriptedParkingBrake`",
+    "call-response": "`policies.scripted.ScriptedCallResponse`",
+}
+"""Where each task's misses are written down (the scripted policy's docstring)."""
+
+
+def targets(data: dict) -> list[dict]:
+    """The task targets for a run's summaries, each ``{"task", "target", "result", "met"}``:
+    the scripted policy's success rate, false releases (none, in the cabin) and median reaction,
+    and the blind policy's false releases (the distractors must bite: the lower end of its
+    rate's 95 % interval above 0)."""
+    rows = {(r["task"], r["policy"]): r for r in data["rows"]}
+    out = []
+    for task in dict.fromkeys(r["task"] for r in data["rows"]):
+        s = rows.get((task, "scripted"))
+        if s is None:
+            continue
+        what = "success (the person in view within 30 s)" if task == "call-response" else "success"
+        out.append({"task": task, "target": f"scripted: {what} at least {SUCCESS_MIN}",
+                    "result": _rate(s["success_rate"], s.get("success_rate_ci95")), "met": s["success_rate"] >= SUCCESS_MIN})
+        limit = REACTION_MAX_S.get(task)
+        if limit is not None:
+            react = s["median_reaction_s"]
+            out.append({"task": task, "target": f"scripted: median reaction at most {limit:g} s",
+                        "result": "n/a" if react is None else f"{react:.2f} s", "met": react is not None and react <= limit})
+        if task == "call-response":
+            continue
+        out.append({"task": task, "target": "scripted: no false release",
+                    "result": _rate(s["false_release_rate"], s.get("false_release_rate_ci95")),
+                    "met": s["false_release_rate"] == 0.0})
+        b = rows.get((task, "blind"))
+        if b is not None:
+            lo = (b.get("false_release_rate_ci95") or [b["false_release_rate"]])[0]
+            out.append({"task": task, "target": "blind: false releases well above 0 (interval above 0)",
+                        "result": _rate(b["false_release_rate"], b.get("false_release_rate_ci95")), "met": lo > 0.0})
+    return out
+
+
+def _target_lines(data: dict) -> list[str]:
+    rows = targets(data)
+    lines = ["**Against the targets** (this run's models; the headless tests check the same targets with the `fast` "
+             "models over 20 episodes, `tests/test_policies.py`):", "", "| task | target | result | met |", "|---|---|---|---|"]
+    lines += [f"| {r['task']} | {r['target']} | {r['result']} | {'yes' if r['met'] else 'no'} |" for r in rows]
+    missed = list(dict.fromkeys(r["task"] for r in rows if not r["met"]))
+    if missed:
+        lines += ["", "Where the episodes that miss fail, and what was tried, is in the scripted policy's docstring: "
+                  + ", ".join(WHY.get(t, t) for t in missed) + "."]
+    return lines + [""]
+
+
 def table(out) -> str:
-    """The Markdown table of a finished run (REPORT.md's body and the README section)."""
+    """The Markdown tables of a finished run (REPORT.md's body and the README section): the
+    targets, then every task and policy."""
     data = _load(out)
     lines = [
+        *_target_lines(data),
         f"{data['episodes']} episodes per task and policy (seeds {data['seed']}-{data['seed'] + data['episodes'] - 1}, "
         f"`{data['profile']}` models). Reaction: from the sound's start to letting go (the cabin) or to the "
         "person in view (the room). A false release lets go on a distractor. In brackets: the rate's 95 % "
@@ -174,4 +235,5 @@ def update_readme(readme, results_dir, image_prefix: str = "results/tasks") -> b
     return replace_section(readme, BEGIN, END, readme_section(results_dir, image_prefix))
 
 
-__all__ = ["BEGIN", "END", "EPISODES", "FIGURE", "POLICIES", "figure", "readme_section", "report", "run_tasks", "table", "update_readme"]
+__all__ = ["BEGIN", "END", "EPISODES", "FIGURE", "POLICIES", "figure", "readme_section", "report", "run_tasks", "table",
+           "targets", "update_readme"]
