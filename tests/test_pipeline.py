@@ -151,6 +151,8 @@ def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
     for key in ("horizontal_mean_deg", "median_mean_deg", "lr_accuracy", "tb_accuracy", "front_back_confusion"):
         assert set(room[key]) == {"ssdenet", "music", "gcc-phat", "ssdenet-wavefront"}, key
     assert room["wavefront_windows"] == 3
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["targets"]) == 5 and all({"target", "result", "met"} <= set(t) for t in summary["targets"])
     det = json.loads((out / "detection.json").read_text())
     assert 0 <= det["f1_macro"] <= 1 and set(det["per_class"]) == set(sounds.SOUND_CLASSES)
     assert "| signal |" in (out / "REPORT.md").read_text()

@@ -72,7 +72,8 @@ def test_targets_table_is_computed_from_the_run():
     assert "top-bottom" in good[3]["target"]
     assert all(r["met"] is True for r in good), good
     bad = run(20.8, 0.72, 0.87, 0.89)
-    assert [r["met"] for r in bad] == [True, False, True, "first wavefront only", False], bad
+    assert [r["met"] for r in bad] == [True, False, True, True, False], bad
+    assert bad[3]["met_by"] == ["first wavefront"] and good[3]["met_by"] == ["on the frames", "first wavefront"]
     assert bad[1]["result"] == "over: square 2000 Hz 20.8 deg"
     assert bad[3]["result"] == "on the frames 0.720, first wavefront 0.870"
     assert run(14.0, 0.5, 0.5, 0.95)[3]["met"] is False
@@ -109,6 +110,7 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
 
     data = tasks.run_tasks(out=tmp_path, quick=True, episodes=1, progress=False)
     assert data["profile"] == "fast" and data["episodes"] == 1
+    assert data["targets"] == tasks.targets(data) and len(data["targets"]) == 9
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
         assert r["episodes"] == 1 and r["success_rate"] in (0.0, 1.0) and sum(r["outcomes"].values()) == 1

@@ -2,7 +2,8 @@
 
 Writes into the output folder: ``pinna.json``, ``hrtf_ild_ipd.json`` (with their
 figures), ``localization.json`` (keys ``simulation`` and ``room``), ``detection.json``,
-the figures ``localization_simulation.png`` and ``localization_room.png``, the measured
+``summary.json`` (timings, and each target with its result and verdict:
+:func:`~acoustic_sim.experiments.report.targets`), the figures ``localization_simulation.png`` and ``localization_room.png``, the measured
 HRTF ``measured_hrtf.sofa`` and ``REPORT.md`` (the tables, generated from the JSON).
 
 ``--quick`` uses the ``fast`` model profiles, 24 simulated directions, a 60-direction
@@ -24,6 +25,7 @@ from acoustic_sim.auditory.melcnn import MelCNN, evaluate, heldout_rng
 from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
+from acoustic_sim.experiments.report import targets as report_targets
 from acoustic_sim.experiments.report import write_json, write_report
 
 PAPER_CLAIMS = {
@@ -134,7 +136,8 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
 
     timings = {k: round(v, 1) for k, v in timings.items()}
     timings["total_s"] = round(time.perf_counter() - t0, 1)
-    summary = {"out": str(out), "profile": profile, "quick": quick, "seed": seed, "hrtf": ears.name, "timings": timings}
+    summary = {"out": str(out), "profile": profile, "quick": quick, "seed": seed, "hrtf": ears.name, "timings": timings,
+               "targets": report_targets(loc, det)}
     write_json(out / "summary.json", summary)
     write_report(out)
     return summary

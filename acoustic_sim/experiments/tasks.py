@@ -5,7 +5,8 @@ paper's behaviours from the percepts; ``oracle``: the same behaviours from the g
 the upper bound; ``blind``: the classes without their directions), ``episodes`` seeded
 episodes (episode ``i`` uses seed ``seed + i``, the same seeds for every policy), run by
 :func:`acoustic_sim.runner.run_episodes`. Writes ``DIR/<task>/<policy>/episodes.json`` (every
-record), ``DIR/tasks.json`` (the summaries), ``DIR/REPORT.md`` (the table) and
+record), ``DIR/tasks.json`` (the summaries, and each target with its result and verdict:
+:func:`targets`), ``DIR/REPORT.md`` (the tables) and
 ``DIR/tasks.png`` (the same as bar charts). The README's "Task results" section is the table
 and the figure, copied by ``acoustic-sim eval readme`` between
 ``<!-- tasks:begin -->`` and ``<!-- tasks:end -->``; a test checks that it agrees with the
@@ -62,6 +63,7 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
                          **{k: s[k] for k in ("success_rate", "success_rate_ci95", "false_release_rate",
                                               "false_release_rate_ci95", "median_reaction_s", "outcomes")}})
     data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
+    data["targets"] = targets(data)
     write_json(out / "tasks.json", data)
     report(out)
     return data
