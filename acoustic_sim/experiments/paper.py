@@ -3,8 +3,9 @@
 Writes into the output folder: ``pinna.json``, ``hrtf_ild_ipd.json`` (with their
 figures), ``localization.json`` (keys ``simulation`` and ``room``), ``detection.json``,
 ``summary.json`` (timings, and each target with its result and verdict:
-:func:`~acoustic_sim.experiments.report.targets`), the figures ``localization_simulation.png`` and ``localization_room.png``, the measured
-HRTF ``measured_hrtf.sofa`` and ``REPORT.md`` (the tables, generated from the JSON).
+:func:`~acoustic_sim.experiments.report.targets`), the figures
+``localization_simulation.png`` and ``localization_room.png``, the measured HRTF
+``measured_hrtf.sofa`` and ``REPORT.md`` (the tables, generated from the JSON).
 
 ``--quick`` uses the ``fast`` model profiles, 24 simulated directions, a 60-direction
 HRTF measurement, the quick room directions and 300 detection windows: every file with
@@ -25,8 +26,7 @@ from acoustic_sim.auditory.melcnn import MelCNN, evaluate, heldout_rng
 from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
-from acoustic_sim.experiments.report import targets as report_targets
-from acoustic_sim.experiments.report import write_json, write_report
+from acoustic_sim.experiments.report import targets as report_targets, write_json, write_report
 
 PAPER_CLAIMS = {
     "simulation": "SSDENet's mean error is below MUSIC's for every signal; MUSIC is near chance (about 90 deg) for sines and triangles.",
