@@ -1,5 +1,6 @@
 """The README's paper section is generated from the committed results/paper run, never typed."""
 
+import json
 import shutil
 import subprocess
 import sys
@@ -98,6 +99,9 @@ def test_readme_task_section_is_the_committed_run():
     assert section == tasks.readme_section(TASKS), "README is stale: run `acoustic-sim eval readme`"
     data = json.loads((TASKS / "tasks.json").read_text())
     assert data["profile"] == "paper" and not data["quick"] and data["episodes"] >= 20  # a full run
+    # On held-out episodes: none of the seeds on which the policies were tuned.
+    assert data["seed"] > tasks.DESIGN_SEEDS[1] or data["seed"] + data["episodes"] - 1 < tasks.DESIGN_SEEDS[0]
+    assert f"held out: the policies were tuned on seeds {tasks.DESIGN_SEEDS[0]}-{tasks.DESIGN_SEEDS[1]}" in section
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
         assert (TASKS / r["task"] / r["policy"] / "episodes.json").is_file()
@@ -109,7 +113,7 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
     from acoustic_sim.runner import TASK_NAMES
 
     data = tasks.run_tasks(out=tmp_path, quick=True, episodes=1, progress=False)
-    assert data["profile"] == "fast" and data["episodes"] == 1
+    assert data["profile"] == "fast" and data["episodes"] == 1 and data["seed"] == tasks.EVAL_SEED
     assert data["targets"] == tasks.targets(data) and len(data["targets"]) == 9
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
@@ -131,6 +135,11 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
         tasks.update_readme(readme, tmp_path)
     with pytest.raises(ConfigError, match="eval tasks"):
         tasks.table(tmp_path / "nothing")
+    # A run on the seeds the policies were tuned on says so.
+    assert "held out" in table and "optimistic" not in table
+    path = tmp_path / "tasks.json"
+    path.write_text(json.dumps({**json.loads(path.read_text()), "seed": tasks.DESIGN_SEEDS[1]}))
+    assert "on which the policies were tuned: an optimistic measure" in tasks.table(tmp_path)
     bad = subprocess.run([sys.executable, "-m", "acoustic_sim.cli", "eval", "tasks", "--out", str(tmp_path / "x"),
                           "--episodes", "0"], capture_output=True, text=True)
     assert bad.returncode != 0 and "--episodes" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr

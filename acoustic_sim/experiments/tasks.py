@@ -28,8 +28,20 @@ BEGIN, END = "<!-- tasks:begin -->", "<!-- tasks:end -->"
 EPISODES = 100
 """Episodes per task and policy of a full run (``--quick``: 3, fast models)."""
 
+DESIGN_SEEDS = (100, 299)
+"""Episode seeds (first, last) on which the policies and the tasks' pipeline settings were chosen."""
 
-def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed: int = 100, quick: bool = False,
+EVAL_SEED = 1000
+"""Seed of a run's first episode by default: held-out episodes. The policies' parameters and
+the tasks' pipeline settings (the measurements in :mod:`policies.scripted`,
+:mod:`tasks.cabin` and :mod:`tasks.parking_brake`) were chosen on seeds 100-299, and the
+regression tests (``tests/test_policies.py``) run seeds 100-119; an evaluation on those
+seeds measures how well the choices fit them. Seeds 1000-1099 were looked at by no choice
+(before 2026-12-03 the reports used 100-199: paper models, ReverseAlarm 0.89 and
+ParkingBrake 0.89 success there, 0.86 and 0.69 on 1000-1099 with the same models)."""
+
+
+def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed: int = EVAL_SEED, quick: bool = False,
               progress: bool = True) -> dict:
     """Run every task with every policy; returns what ``tasks.json`` holds.
 
@@ -42,7 +54,7 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
     episodes : int, optional
         Per task and policy; default :data:`EPISODES` (3 when ``quick``).
     seed : int
-        Seed of the first episode, >= 0.
+        Seed of the first episode, >= 0 (default :data:`EVAL_SEED`: held out from every design choice).
     quick : bool
         Few episodes with the fast models (tests).
     """
@@ -206,9 +218,13 @@ def table(out) -> str:
     """The Markdown tables of a finished run (REPORT.md's body and the README section): the
     targets, then every task and policy."""
     data = _load(out)
+    first, last = data["seed"], data["seed"] + data["episodes"] - 1
+    held_out = last < DESIGN_SEEDS[0] or first > DESIGN_SEEDS[1]
+    seeds = (f"held out: the policies were tuned on seeds {DESIGN_SEEDS[0]}-{DESIGN_SEEDS[1]}" if held_out else
+             f"overlapping seeds {DESIGN_SEEDS[0]}-{DESIGN_SEEDS[1]}, on which the policies were tuned: an optimistic measure")
     lines = [
         *_target_lines(data),
-        f"{data['episodes']} episodes per task and policy (seeds {data['seed']}-{data['seed'] + data['episodes'] - 1}, "
+        f"{data['episodes']} episodes per task and policy (seeds {first}-{last}, {seeds}; "
         f"`{data['profile']}` models). Reaction: from the sound's start to letting go (the cabin) or to the "
         "person in view (the room). A false release lets go on a distractor. In brackets: the rate's 95 % "
         "interval (Wilson; the episodes are a sample of the task's random draws).",
