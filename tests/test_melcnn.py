@@ -279,3 +279,15 @@ def test_paper_network_shape_and_budget_layout():
     assert out.shape == (2, 6)
     with pytest.raises(ConfigError):
         mc.NetConfig(conv1_kernel=(200, 5))
+
+
+def test_three_independent_streams_training_validation_report():
+    """Training data (stream 0), the validation windows the recipes were chosen on (1) and the
+    windows ``eval paper`` reports on (2) come from different streams of the profile's seed;
+    streams 0 and 1 are those of the two-stream split the cached models were trained with."""
+    seed = mc.PROFILES["paper"].seed
+    old = [np.random.default_rng(s).random(4) for s in np.random.SeedSequence(seed).spawn(2)]
+    draws = [f("paper").random(4) for f in (mc.training_rng, mc.heldout_rng, mc.report_rng)]
+    np.testing.assert_array_equal(draws[0], old[0])
+    np.testing.assert_array_equal(draws[1], old[1])
+    assert not np.allclose(draws[2], draws[0]) and not np.allclose(draws[2], draws[1])

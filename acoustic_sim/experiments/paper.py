@@ -22,7 +22,7 @@ import numpy as np
 from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.measure import measure_hrtf
 from acoustic_sim.auditory.baselines import GccPhat, Music
-from acoustic_sim.auditory.melcnn import MelCNN, evaluate, heldout_rng
+from acoustic_sim.auditory.melcnn import MelCNN, evaluate, report_rng
 from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
@@ -129,7 +129,7 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     # 5. Detection.
     t = time.perf_counter()
     cnn = MelCNN.load_or_train(profile, progress=progress)
-    det = evaluate(cnn, heldout_rng(profile), 300 if quick else 3000, progress=progress)
+    det = evaluate(cnn, report_rng(profile), 300 if quick else 3000, progress=progress)
     det.update(profile=profile, paper_f1=PAPER_CLAIMS["detection_f1"])
     write_json(out / "detection.json", det)
     timings["detection_s"] = time.perf_counter() - t

@@ -165,8 +165,8 @@ def tables(out) -> str:
         ]
     lines += [
         "",
-        f"**Detection** (MelCNN, `{det['profile']}`, {det['n_examples']} held-out windows with mixtures, noise and "
-        f"reverberation): macro F1 **{det['f1_macro']:.3f}** (paper: {det['paper_f1']}).",
+        f"**Detection** (MelCNN, `{det['profile']}`, {det['n_examples']} windows with mixtures, noise and "
+        f"reverberation, held out from the training and from the recipe's choices): macro F1 **{det['f1_macro']:.3f}** (paper: {det['paper_f1']}).",
         "",
         "| class | precision | recall | F1 | support |",
         "|---|---|---|---|---|",
