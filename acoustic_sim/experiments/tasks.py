@@ -36,8 +36,8 @@ EVAL_SEED = 1000
 the tasks' pipeline settings (the measurements in :mod:`policies.scripted`,
 :mod:`tasks.cabin` and :mod:`tasks.parking_brake`) were chosen on seeds 100-299, and the
 regression tests (``tests/test_policies.py``) run seeds 100-119; an evaluation on those
-seeds measures how well the choices fit them. Seeds 1000-1099 were looked at by no choice
-(before 2026-12-03 the reports used 100-199: paper models, ReverseAlarm 0.89 and
+seeds measures how well the choices fit them. Seeds 1000-1099 informed no choice that was
+taken (one variant measured there was not: :class:`policies.scripted.ScriptedParkingBrake`) (before 2026-12-03 the reports used 100-199: paper models, ReverseAlarm 0.89 and
 ParkingBrake 0.89 success there, 0.86 and 0.69 on 1000-1099 with the same models)."""
 
 
