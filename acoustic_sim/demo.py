@@ -73,6 +73,10 @@ class Trace:
         (seconds since the start, ``info`` event dict).
     start_s : float
         Project-clock time (s) of the episode's first observation (``env.start_s``).
+    waiting : list of tuple
+        Per step, why the policy's lever stood (``None``, ``"listening"``, ``"masked"`` or
+        ``"settling"``, :class:`policies.scripted.ScriptedReverseAlarm`) and the classes that
+        masked; empty when the hook that fills it was not given the policy.
     """
 
     t: list = dataclasses.field(default_factory=list)
@@ -85,6 +89,7 @@ class Trace:
     audio: list = dataclasses.field(default_factory=list)
     events: list = dataclasses.field(default_factory=list)
     start_s: float = 0.0
+    waiting: list = dataclasses.field(default_factory=list)
 
     def necks(self) -> list:
         """:attr:`neck` per step, the head straight ahead where the trace has none."""
@@ -200,6 +205,14 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         where = float(np.nanmedian(az[a:b + 1]))
         timeline.append((t[a], 2, (f"heard a reverse alarm from {where:+.0f} deg ({side_words(where)}) until "
                                    f"{t[b]:.2f} s{_truth(trace, a, b)}")))
+    # Where the lever stood waiting for quiet (the policy's reason, step by step).
+    waits = np.array([w is not None and w[0] in ("masked", "settling") for w in trace.waiting], bool)
+    for a, b in _runs(waits):
+        masked = sorted({c.replace("_", " ") for w in trace.waiting[a:b + 1] for c in (w[1] if w[0] == "masked" else ())})
+        why = [f"hearing {', '.join(masked)}"] if masked else []
+        if any(w[0] == "settling" for w in trace.waiting[a:b + 1]):
+            why.append(f"after a {LABEL.replace('_', ' ')} from elsewhere")
+        timeline.append((t[a], 1, f"the lever waits for quiet ({'; '.join(why)}) until {t[min(b + 1, len(t) - 1)]:.2f} s"))
     tail = []
     if onset is None:
         tail.append("the car's reverse alarm never started (the lever did not reach R)")
@@ -438,6 +451,7 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
 
             def hook(*args):
                 trace(*args)
+                trace.waiting.append((policy.waiting, policy.maskers) if args[2] > 0 else (None, ()))
                 recorder(*args)
 
             record = run_episode(env, policy, int(seed), step_callback=hook)
