@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.experiments.tasks import DESIGN_SEEDS, EVAL_SEED
+from acoustic_sim.experiments.tasks import EVAL_SEED, design_seeds_text
 
 HRTF_HELP = ("'kemar' (bundled MIT KEMAR, mirror-symmetric ears), 'musashi' (the robot's ears: KEMAR with the right pinna "
              "tilted 10 deg, so that the median plane has interaural cues), 'spherical' (rigid sphere, no pinna) or a "
@@ -96,7 +96,7 @@ def add_parsers(sub) -> None:
     et.add_argument("--episodes", type=int, default=None, help="episodes per task and policy (default 100; 3 with --quick)")
     et.add_argument("--seed", type=int, default=EVAL_SEED,
                     help=f"seed of the first episode (default {EVAL_SEED}: held-out episodes; the policies were tuned on "
-                    f"seeds {DESIGN_SEEDS[0]}-{DESIGN_SEEDS[1]}, of which the regression tests run 100-119)")
+                    f"seeds {design_seeds_text()}; the regression tests run 100-119)")
     et.add_argument("--quick", action="store_true", help="3 episodes each with the fast models (for tests)")
     et.set_defaults(func=cmd_eval_tasks)
     er = esub.add_parser(
