@@ -4,6 +4,15 @@ It lets go on any reverse alarm (ReverseAlarm) or any ratchet-like click (Parkin
 with the same evidence rule as ``scripted`` (``votes`` of the last ``window`` frames) but
 without the direction test, so the distractors bite: its false releases measure what
 hearing the direction is worth.
+
+The scripted cabin policies also wait for quiet before moving the lever
+(:class:`policies.scripted.ScriptedReverseAlarm`), which needs no direction. The blind
+policies stay as the issue defines them (any alarm or click), but what that waiting is
+worth without the direction test was measured (paper models, seeds 200-299, a ``/tmp``
+variant: the scripted rules with every heard frame a vote for): ParkingBrake 47/100 with 53
+false releases, ReverseAlarm 55 with 45; these blind policies on the same seeds: 29 with
+70, 67 with 33; scripted: 94 with none, 96 with none. Waiting does not stand in for the
+direction: the gap to ``scripted`` is the direction's worth either way.
 """
 
 from __future__ import annotations
