@@ -203,7 +203,11 @@ class ScriptedReverseAlarm(LeverPolicy):
     elsewhere, not ``settle_s`` after any hearing: ReverseAlarm 92 with 6 on 1000-1099;
     counting the lever as moving while the arm's joints still turn (proprioception, at least
     2 deg/s, about 0.2 s after the command stops): ParkingBrake 96/100 none on 200-299, 98
-    with 1 on 1000-1099 (not taken).
+    with 1 on 1000-1099 (not taken); the alarm credited only after the gear lever's clunk was
+    heard (the lever entering R; the alarm's frames before it neither for nor against, 1.5 s
+    after it for): ReverseAlarm 40/100 on both 200-299 and 1000-1099, no false release,
+    median reaction 0.91 s (MelCNN hears the clunk 0.2-0.3 s after the alarm starts, when the
+    first beep has been placed already; the second comes 0.9 s after the first).
 
     Held out (seeds 2000-2099, which no choice looked at; ``acoustic-sim eval tasks``,
     ``results/tasks``): 0.92 with 3 false releases, each another vehicle's beeper on the
