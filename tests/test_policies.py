@@ -153,14 +153,17 @@ def test_scripted_parking_brake_targets(envs, hearing):
     assert summary["median_reaction_s"] <= 0.3, summary
 
 
-FLOOR_SUCCESS = 0.55
-FLOOR_FALSE_RELEASES = 0.20
+FLOOR_SUCCESS = 0.65
+FLOOR_FALSE_RELEASES = 0.15
 """The fast models' floor in the cabin tasks over these 20 episodes. The fast SSDENet's
-training seed moves them a lot (this machine, same recipe, seeds 0 / 1 / 2: ReverseAlarm
-18 / 12 / 15 of 20 with one false release each, ParkingBrake 17 / 12 / 16 with 0 / 3 / 1;
-median reactions 0.09-0.15 s and 0.05-0.07 s; measured before the policy waited for quiet), and CI trains its own models on another
-CPU, which is another draw. ``blind`` on the same episodes: 10 and 5 of 20, false
-releases 0.50 and 0.75. The floor sits below the worst seed and well above ``blind``."""
+training seed moves them (this machine, same recipe, since the policies wait for quiet;
+seeds 0 / 1 / 2: ReverseAlarm 18 / 15 / 15 of 20 with one false release each,
+ParkingBrake 18 / 19 / 19 with none; median reactions 0.09 s and 0.05 s with each; before
+the waiting, 18 / 12 / 15 and 17 / 12 / 16 with up to 3 false releases, and the floor was
+0.55 and 0.20), and CI trains its own models on another CPU, which is another draw.
+``blind`` on the same episodes: 10 and 5 of 20, false releases 0.50 and 0.75. The floor
+sits two episodes below the worst seed and well above ``blind``, and above what the
+policies did before waiting for quiet with the worst seed (0.60)."""
 
 
 @pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
