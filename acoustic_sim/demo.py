@@ -211,7 +211,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         masked = sorted({c.replace("_", " ") for w in trace.waiting[a:b + 1] for c in (w[1] if w[0] == "masked" else ())})
         why = [f"hearing {', '.join(masked)}"] if masked else []
         if any(w[0] == "settling" for w in trace.waiting[a:b + 1]):
-            why.append(f"after a {LABEL.replace('_', ' ')} from elsewhere")
+            why.append(f"after a {LABEL.replace('_', ' ')} not placed in front")
         timeline.append((t[a], 1, f"the lever waits for quiet ({'; '.join(why)}) until {t[min(b + 1, len(t) - 1)]:.2f} s"))
     tail = []
     if onset is None:

@@ -199,7 +199,7 @@ class ScriptedReverseAlarm(LeverPolicy):
     beeper's later beeps placed at the alarm's mirror image while the lever waited);
     ``credit_s`` 0.5 s for the ratchet 93 with 6 (the key's lock click and the radio's onsets
     7-34 frames after the lever stopped; decisions on a real click come 1-2 frames after it
-    stops), 0.13 s 98 with 1; waiting after the target's class only when it was placed
+    stops), 0.13 s 98 with 1 (these two without ``settle_s``); waiting after the target's class only when it was placed
     elsewhere, not ``settle_s`` after any hearing: ReverseAlarm 92 with 6 on 1000-1099;
     counting the lever as moving while the arm's joints still turn (proprioception, at least
     2 deg/s, about 0.2 s after the command stops): ParkingBrake 96/100 none on 200-299, 98
@@ -427,8 +427,11 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     votes = 2
     credit_s = 0.064
     """A click is the pawl passing a tooth, which only a moving lever does: one heard more
-    than four frames after the hand stopped is not the brake's (the ears' decision comes one
-    or two frames after the lever stops on a click: it stops when the class is heard)."""
+    than four frames after the pull's command stopped is not the brake's (the ears' decision
+    comes one or two frames after the lever stops on a click: it stops when the class is
+    heard). The lever itself follows the command up to about 0.2 s late, so a tooth it slides
+    over after a stop for another sound goes uncredited (2078 in the held-out run); crediting
+    the arm's sensed motion instead was measured and not taken (see above)."""
 
     def accept(self, direction: np.ndarray, obs) -> bool:
         return lateral_deg(direction) <= -self.lateral_deg

@@ -124,6 +124,22 @@ def test_narration_of_a_success_a_false_release_and_a_miss():
     assert m["front_s"] is None and m["release_s"] is None
 
 
+def test_narration_of_the_lever_waiting_for_quiet():
+    """The policy's waits (``Trace.waiting``, filled from the policy by the demo's hook) are
+    told as one line per run of waiting steps, with what it heard."""
+    tr = _trace(70, alarm_from=5.0)
+    tr.waiting = [(None, ())] * 71
+    tr.waiting[5:12] = [("masked", ("human_voice",))] * 5 + [("masked", ("car_horn", "human_voice"))] * 2
+    tr.waiting[12:20] = [("settling", ())] * 8
+    tr.waiting[41:44] = [("listening", ())] * 3  # listening to the alarm is not a wait for quiet
+    text, _ = _say(tr, _record("success", 70, 38, 60))
+    lines = text.splitlines()
+    assert lines[1] == ("   0.08 s  the lever waits for quiet (hearing car horn, human voice; after a reverse alarm "
+                        "not placed in front) until 0.32 s")
+    assert sum("waits for quiet" in line for line in lines) == 1
+    assert lines[2].startswith("   0.61 s  the lever enters R")
+
+
 def test_side_words():
     assert [side_words(a) for a in (0, 30, 90, 135, 180, -180, -90, -45, -140, 200)] == [
         "in front", "in front on the left", "on the left", "behind on the left", "behind", "behind", "on the right",
