@@ -11,7 +11,8 @@ step hook feeds both the rerun recording and this module's trace.
 :func:`run_demo` writes, in ``OUT``:
 
 ``demo.png``
-    Left and right mel spectrograms, the reverse alarm's probability, and the estimated
+    Left and right mel spectrograms, the class probabilities (shaded where the lever waited
+    for quiet), and the estimated
     azimuth of the reverse alarm over time with the true azimuths of the alarm and of any
     beeping distractor, events marked as vertical lines (as the paper's task figures).
 ``demo.rrd``
@@ -338,6 +339,11 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
         if j != k:
             axes[2].plot(t, [x[j] for x in trace.prob], lw=0.8, alpha=0.6, label=c.replace("_", " "))
     axes[2].axhline(threshold, color="k", lw=0.6, ls=":")
+    # The lever's waits for quiet (the policy's reason per step, when the trace has it).
+    waits = np.array([w is not None and w[0] in ("masked", "settling") for w in trace.waiting], bool)
+    for n, (a, b) in enumerate(_runs(waits)):
+        axes[2].axvspan(t[a], t[min(b + 1, len(t) - 1)], color="tab:blue", alpha=0.12, lw=0,
+                        label="lever waits for quiet" if n == 0 else None)
     axes[2].set_ylim(-0.02, 1.02)
     axes[2].set_ylabel("class\nprobability")
     axes[2].legend(loc="upper left", fontsize=7, ncol=3)
