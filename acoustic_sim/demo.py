@@ -92,6 +92,11 @@ class Trace:
     start_s: float = 0.0
     waiting: list = dataclasses.field(default_factory=list)
 
+    def wait_runs(self) -> list[tuple[int, int]]:
+        """(first, last) steps of each run in which the lever waited for quiet (``masked`` or
+        ``settling``, not ``listening``)."""
+        return _runs(np.array([w[0] in ("masked", "settling") for w in self.waiting], bool))
+
     def necks(self) -> list:
         """:attr:`neck` per step, the head straight ahead where the trace has none."""
         return self.neck if self.neck else [np.zeros(2)] * len(self.direction)
@@ -207,8 +212,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         timeline.append((t[a], 2, (f"heard a reverse alarm from {where:+.0f} deg ({side_words(where)}) until "
                                    f"{t[b]:.2f} s{_truth(trace, a, b)}")))
     # Where the lever stood waiting for quiet (the policy's reason, step by step).
-    waits = np.array([w is not None and w[0] in ("masked", "settling") for w in trace.waiting], bool)
-    for a, b in _runs(waits):
+    for a, b in trace.wait_runs():
         masked = sorted({c.replace("_", " ") for w in trace.waiting[a:b + 1] for c in (w[1] if w[0] == "masked" else ())})
         why = [f"hearing {', '.join(masked)}"] if masked else []
         if any(w[0] == "settling" for w in trace.waiting[a:b + 1]):
@@ -340,8 +344,7 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
             axes[2].plot(t, [x[j] for x in trace.prob], lw=0.8, alpha=0.6, label=c.replace("_", " "))
     axes[2].axhline(threshold, color="k", lw=0.6, ls=":")
     # The lever's waits for quiet (the policy's reason per step, when the trace has it).
-    waits = np.array([w is not None and w[0] in ("masked", "settling") for w in trace.waiting], bool)
-    for n, (a, b) in enumerate(_runs(waits)):
+    for n, (a, b) in enumerate(trace.wait_runs()):
         axes[2].axvspan(t[a], t[min(b + 1, len(t) - 1)], color="tab:blue", alpha=0.12, lw=0,
                         label="lever waits for quiet" if n == 0 else None)
     axes[2].set_ylim(-0.02, 1.02)

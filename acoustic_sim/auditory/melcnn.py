@@ -290,15 +290,20 @@ def get_profile(profile: str | Profile) -> Profile:
     return PROFILES[profile]
 
 
+def _stream(profile: str | Profile, k: int) -> np.random.Generator:
+    """Stream ``k`` of the three that a profile's seed spawns (training, validation, report)."""
+    return np.random.default_rng(np.random.SeedSequence(get_profile(profile).seed).spawn(3)[k])
+
+
 def training_rng(profile: str | Profile) -> np.random.Generator:
     """The generator of a profile's training data (stream 0 of its seed)."""
-    return np.random.default_rng(np.random.SeedSequence(get_profile(profile).seed).spawn(3)[0])
+    return _stream(profile, 0)
 
 
 def heldout_rng(profile: str | Profile = "paper") -> np.random.Generator:
     """A generator for held-out validation data (stream 1 of its seed), independent of the
     training stream: the recipes' measurements above, and the tests, use it."""
-    return np.random.default_rng(np.random.SeedSequence(get_profile(profile).seed).spawn(3)[1])
+    return _stream(profile, 1)
 
 
 def report_rng(profile: str | Profile = "paper") -> np.random.Generator:
@@ -306,7 +311,7 @@ def report_rng(profile: str | Profile = "paper") -> np.random.Generator:
     of the profile's seed, which neither training nor any choice of recipe looked at (those
     compared F1 on :func:`heldout_rng`'s windows, so an F1 there is the chosen recipe's best
     draw, not an estimate)."""
-    return np.random.default_rng(np.random.SeedSequence(get_profile(profile).seed).spawn(3)[2])
+    return _stream(profile, 2)
 
 
 # --------------------------------------------------------------------------- functional core
