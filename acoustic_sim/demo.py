@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -149,7 +149,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, success_window_s: float, seed: int,
-            profile: str, mirror: bool = False) -> tuple[str, dict]:
+            profile: str, mirror: bool = False, elevation_deg: tuple = (-90.0, 90.0)) -> tuple[str, dict]:
     """The episode in words, in time order, and the moments it names (for ``demo.json``).
 
     What the robot heard comes from the observations (the reverse alarm's probability and
@@ -168,6 +168,8 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     mirror : bool
         The policy also accepts a direction whose front-back mirror image (through the
         head's interaural axis) is in front (:class:`policies.scripted.ScriptedReverseAlarm`).
+    elevation_deg : tuple of float
+        (lowest, highest) elevation (deg, car frame) of the front region (the policy's).
     success_window_s : float
         Longest alarm-to-release time of a success (the task's), s.
     seed : int
@@ -193,7 +195,17 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     neck = trace.necks()
     az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
     maz = np.array([car_azimuth_deg(v, n, mirror=True) if h else np.nan for v, n, h in zip(d, neck, has)])
-    accepted = has & ((np.abs(az) <= front_deg) | (mirror & (np.abs(maz) <= front_deg)))
+    lo, hi = elevation_deg
+    el, mel = (np.array([math.degrees(head_to_body_elevation(v, float(n[1]), mirror=m)) if h else np.nan
+                         for v, n, h in zip(d, neck, has)]) for m in (False, True))
+    in_front = has & (np.abs(az) <= front_deg) & (el >= lo) & (el <= hi)
+    accepted = in_front | (has & mirror & (np.abs(maz) <= front_deg) & (mel >= lo) & (mel <= hi))
+    bounds = [f"azimuth +-{front_deg:.0f} deg"]
+    if lo > -90.0:
+        bounds.append(f"elevation at least {lo:+.0f} deg")
+    if hi < 90.0:
+        bounds.append(f"elevation at most {hi:+.0f} deg")
+    front_region = f"the front region: {', '.join(bounds)}"
     onset = record["target_onset_s"]
     onset = None if onset is None else onset - trace.start_s
     release = record.get("release_s")
@@ -230,12 +242,12 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
             j = int(after[0])
             a = float(az[j])
             if abs(a) <= front_deg or not mirror:
-                region = f"{'inside' if abs(a) <= front_deg else 'outside'} the front region, +-{front_deg:.0f} deg"
+                region = f"{'inside' if in_front[j] else 'outside'} {front_region}"
             else:
                 region = (f"its front-back mirror image, {maz[j]:+.0f} deg, is "
-                          f"{'inside' if accepted[j] else 'outside'} the front region, +-{front_deg:.0f} deg")
+                          f"{'inside' if accepted[j] else 'outside'} {front_region}")
             timeline.append((t[j], 3, (f"recognized as a reverse alarm (p = {p[j]:.2f}), {t[j] - onset:.2f} s after it "
-                                      f"started, from {a:+.0f} deg ({side_words(a)}; {region})")))
+                                      f"started, from {a:+.0f} deg azimuth, {el[j]:+.0f} deg elevation ({side_words(a)}; {region})")))
             moments.update(recognized_s=float(t[j]), recognized_azimuth_deg=a)
             front = after[accepted[after]]
             if front.size and front[0] != j:
@@ -471,7 +483,8 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     threshold = float(policy.threshold)
     mirror = bool(getattr(policy, "mirror", False))
     text, moments = narrate(trace, record, threshold=threshold, front_deg=float(policy.front_deg),
-                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile, mirror=mirror)
+                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile, mirror=mirror,
+                            elevation_deg=tuple(float(x) for x in getattr(policy, "elevation_deg", (-90.0, 90.0))))
     title = (f"ReverseAlarm, scripted policy, seed {seed}, {profile} models: "
              f"{record['outcome'].replace('_', ' ')}")
     figure(trace, moments, out / "demo.png", threshold=threshold, front_deg=float(policy.front_deg), title=title,

@@ -129,6 +129,21 @@ def head_to_body_azimuth(v_head, yaw: float = 0.0, pitch: float = 0.0, *, headin
     return (math.atan2(y, x) + yaw + heading + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def head_to_body_elevation(v_head, pitch: float = 0.0, *, mirror: bool = False) -> float:
+    """Elevation (rad, + up, -pi/2..pi/2) in the body's frame of a head-frame direction, the
+    head pitched by ``pitch`` (rad, + nose down) on the body: the companion of
+    :func:`head_to_body_azimuth` (the yaw and the heading turn about the vertical and leave
+    it unchanged); ``mirror`` as there. Scalar math, as there.
+    """
+    x, y, z = (float(c) for c in v_head)
+    if mirror:
+        x = -x
+    n = math.sqrt(x * x + y * y + z * z)
+    if n == 0.0:
+        raise ValueError("a direction of zero length has no elevation")
+    return math.asin(max(-1.0, min(1.0, (z * math.cos(pitch) - x * math.sin(pitch)) / n)))
+
+
 def world_to_head(points_world, head_position, head_rotation) -> np.ndarray:
     """Express world points (..., 3) in the head frame given the head pose.
 

@@ -33,7 +33,7 @@ from collections import deque
 
 import numpy as np
 
-from acoustic_sim.frames import head_to_body_azimuth
+from acoustic_sim.frames import head_to_body_azimuth, head_to_body_elevation
 from tasks.base import CLASSES, CONTROL_DT, lever_arm_angles
 
 
@@ -156,9 +156,10 @@ class ScriptedReverseAlarm(LeverPolicy):
     """Push the gearshift until the reverse alarm is heard from the front, then let go.
 
     Parameters (class level): ``threshold`` (class probability), ``min_conf`` (direction
-    confidence), ``front_deg`` (half-width of the front sector, deg of azimuth), ``window``
-    and ``votes`` (see :class:`Votes`), ``head_yaw_deg`` (the neck's yaw while listening,
-    deg, + left) and ``mirror`` (accept the front-back mirror image of the front sector);
+    confidence), ``front_deg`` (half-width of the front sector, deg of azimuth),
+    ``elevation_deg`` (its elevations, deg), ``window`` and ``votes`` (see :class:`Votes`),
+    ``head_yaw_deg`` (the neck's yaw while listening, deg, + left) and ``mirror`` (accept the
+    front-back mirror image of the front sector);
     ``credit_s``, ``masker_level``, ``masker_quiet_s``, ``settle_s`` and ``own_classes``
     (waiting for quiet, below).
 
@@ -214,10 +215,34 @@ class ScriptedReverseAlarm(LeverPolicy):
     but the fast MelCNN often misses the clunk: 10/20 on the test seeds (18/20 now). Not
     taken: the rule would rest on a class that the small models do not hear.
 
-    Held out (seeds 2000-2099, which no choice looked at; ``acoustic-sim eval tasks``,
-    ``results/tasks``): 0.92 with 3 false releases, each another vehicle's beeper on the
-    left placed at the alarm's front-back mirror image (2048, 2064, 2079: the ambiguity
-    described above), and 5 that never let go. In the two looked at, no beep was placed in
+    In front, not above (since 2026-12-04, session 19). The sector is bounded in elevation
+    too (``elevation_deg``: at most 20 deg up; the dashboard speaker is 10 deg below the
+    ears): two of the three false releases on the then held-out seeds 2000-2099 were another
+    vehicle's beeper placed 30-40 deg up (2048, 2079); another one 60 deg up, in front, let
+    go with the head turned 70 deg (1004). Paper models, the same episodes before -> after:
+    100-199 99 -> 99, 200-299 96 -> 96, 1000-1099 96 with 3 false releases -> 96 with 3,
+    2000-2099 92 with 3 -> 91 with 1 (2007, 2024 and 2065 now never let go: their alarm's
+    beeps were placed 30-50 deg up, the up-down confusion of the cone); fast models 100-119
+    18/20 with 1 -> the same, 1000-1099 88 with 2 -> 89 with none. A lower bound as well (-40
+    deg): 94 with 3 and 89 with 1 on 1000-1099 and 2000-2099 (beeps placed lower): none.
+    The false releases left (1012, 1034, 1084, 2064; fast 100) are beepers on the left whose
+    placements are those of the alarm's beeps (azimuth 77-80 deg, elevation -30 or -20 deg
+    from the car: the alarm's mirror image). A beeper outside plays from the nearest point
+    inside the walls (:func:`tasks.soundscape.outside_placement`), and the cabin's left wall
+    is 0.45 m from the head, so beepers beside the car up to 1 m ahead of the head are heard
+    through the window 21-37 deg from the alarm (1034, 1084, 2048, 2064, 2079): close enough
+    for the estimates of one to be those of the other. The mirror image keeps angles, so no
+    listening pose separates them; measured (no elevation bound): the head turned 70 deg
+    right, 90/100 with 7 false releases on 1000-1099 (95 with 2 on 200-299); 85 deg right, 85
+    with 6; 80 deg left (the alarm's mirror image 20 deg right of the front), 85 with 5.
+
+    Held out (seeds 3000-3099, which no choice looked at; ``acoustic-sim eval tasks``,
+    ``results/tasks``): 0.96 (95 % interval 0.90-0.98), no false release, 4 that never let
+    go (3013, 3015, 3034, 3087; not looked at), median reaction 0.11 s.
+
+    Held out before the elevation bound (seeds 2000-2099): 0.92 with 3 false releases, each
+    another vehicle's beeper on the left placed at the alarm's front-back mirror image or high
+    up (2048, 2064, 2079: the ambiguity described above), and 5 that never let go. In the two looked at, no beep was placed in
     front within ``credit_s`` of the lever's stop: in 2019 a car horn stopped the lever (0.1 s
     after the horn began: MelCNN's delay), the lever still slid into R and the alarm sounded
     under the horn, its first placed beep 1.2 s after the stop; in 2088 the first beep was
@@ -275,6 +300,11 @@ class ScriptedReverseAlarm(LeverPolicy):
     votes = 3
     head_yaw_deg = -45.0
     mirror = True
+    elevation_deg = (-90.0, 20.0)
+    """The front sector's elevations (deg, + up): the dashboard speaker is 10 deg below the
+    ears; an estimate more than 30 deg above that is not the alarm; below, no bound (its
+    beeps are placed down to -50 deg; see "In front, not above" in
+    :class:`ScriptedReverseAlarm`)."""
 
     credit_s = 1.0
     """How long after the hand stopped the target sound can still be its doing (see
@@ -302,11 +332,15 @@ class ScriptedReverseAlarm(LeverPolicy):
         self.maskers: tuple = ()  # the classes masking in the last frame
 
     def accept(self, direction: np.ndarray, obs) -> bool:
-        """The alarm's region: in front of the car (azimuth within ``front_deg``), or the
-        front-back mirror image of that with respect to the head (``mirror``); ``obs`` gives
-        the neck's pose."""
-        return abs(math.degrees(fixed_azimuth(obs, direction))) <= self.front_deg or (
-            self.mirror and abs(math.degrees(fixed_azimuth(obs, direction, mirror=True))) <= self.front_deg)
+        """The alarm's region: in front of the car (azimuth within ``front_deg``, elevation
+        within ``elevation_deg``), or the front-back mirror image of that with respect to the
+        head (``mirror``); ``obs`` gives the neck's pose."""
+        lo, hi = self.elevation_deg
+        for mirror in (False, True) if self.mirror else (False,):
+            if (abs(math.degrees(fixed_azimuth(obs, direction, mirror=mirror))) <= self.front_deg
+                    and lo <= math.degrees(fixed_elevation(obs, direction, mirror=mirror)) <= hi):
+                return True
+        return False
 
     def should_release(self, obs, info) -> bool:
         if not self.hold:  # the lever moved in the last step
@@ -355,7 +389,12 @@ class ScriptedParkingBrake(ScriptedReverseAlarm):
     models, seed 115: an early release). Fast models, seeds 100-119 (one onset window): 0.65 -> 0.70,
     false releases 0.15 -> 0.05 (the same with 20, 30 or 40 deg).
 
-    Held out (seeds 2000-2099; ``acoustic-sim eval tasks``, ``results/tasks``), waiting for
+    Held out (seeds 3000-3099; ``acoustic-sim eval tasks``, ``results/tasks``; the policy as
+    on 2000-2099, its elevation bound is ReverseAlarm's only): 0.94 (0.88-0.97), no false
+    release, 4 late (2.4-2.6 s after the first click: 3003, 3051, 3088, 3095) and 2 that
+    never let go (3009, 3069); not looked at.
+
+    Held out on seeds 2000-2099 (now design seeds), waiting for
     quiet (:class:`ScriptedReverseAlarm`): 0.96, no false release, 3 that never let go and 1
     late. In 2078 (looked at) the turn-signal relay stopped the lever, which still slid over
     the first tooth 0.1 s later; that click was not placed on the right within ``credit_s``,
@@ -450,6 +489,13 @@ POLICY_CLASSES["parking-brake"] = ScriptedParkingBrake
 
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def fixed_elevation(obs, v_head, *, mirror: bool = False) -> float:
+    """Elevation (rad, + up) in the frame fixed at the episode's start of a head-frame
+    vector (``mirror``: of its front-back mirror image), by the neck's pitch; see
+    :func:`fixed_azimuth`."""
+    return head_to_body_elevation(v_head, float(obs["joint_pos"][1]), mirror=mirror)
 
 
 def fixed_azimuth(obs, v_head, *, mirror: bool = False) -> float:

@@ -118,7 +118,7 @@ def test_narration_of_a_success_a_false_release_and_a_miss():
 
     # heard, but only from the side: never let go, pushed past R
     text, m = _say(_trace(90, alarm_from=-100.0), _record("past_reverse", 90, 38, None))
-    assert "from -100 deg (on the right; outside the front region, +-45 deg)" in text
+    assert "from -100 deg azimuth, +0 deg elevation (on the right; outside the front region: azimuth +-45 deg)" in text
     assert "51 frames heard it with a direction: median -100 deg, 0 of them from the front" in text
     assert "the left hand never let go" in text and text.endswith("failure: pushed the lever past R")
     assert m["front_s"] is None and m["release_s"] is None
@@ -168,10 +168,24 @@ def test_narration_in_the_car_frame_with_the_mirror_accepted():
     tr.neck = [np.array([np.radians(-45.0), 0.0])] * len(tr.t)
     text, m = narrate(tr, _record("success", 70, 38, 60), threshold=0.5, front_deg=20.0, success_window_s=1.0, seed=3,
                       profile="fast", mirror=True)
-    assert "from +80 deg (on the left; its front-back mirror image, +10 deg, is inside the front region, +-20 deg)" in text
+    assert ("from +80 deg azimuth, +0 deg elevation (on the left; its front-back mirror image, +10 deg, is inside the "
+            "front region: azimuth +-20 deg)") in text
     assert "21 frames heard it with a direction: median +80 deg, 21 of them from the front or its mirror image" in text
     assert m["front_s"] == m["recognized_s"]
     # Without the mirror, the same estimate is outside the front region.
     text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, front_deg=20.0, success_window_s=1.0,
                       seed=3, profile="fast")
-    assert "from +80 deg (on the left; outside the front region, +-20 deg)" in text and m["front_s"] is None
+    assert ("from +80 deg azimuth, +0 deg elevation (on the left; outside the front region: azimuth +-20 deg)" in text
+            and m["front_s"] is None)
+    # The policy's elevation bound: the same azimuth heard 40 deg up is outside, mirror or not.
+    up = np.radians(40.0)
+    for d in tr.direction:
+        on = np.linalg.norm(d, axis=1) > 0
+        d[on] *= np.cos(up)
+        d[on, 2] = np.sin(up)
+    text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, front_deg=20.0, success_window_s=1.0,
+                      seed=3, profile="fast", mirror=True, elevation_deg=(-90.0, 20.0))
+    assert ("from +80 deg azimuth, +40 deg elevation (on the left; its front-back mirror image, +10 deg, is outside the "
+            "front region: azimuth +-20 deg, elevation at most +20 deg)") in text
+    assert "31 frames heard it with a direction: median +80 deg, 0 of them from the front or its mirror image" in text
+    assert m["front_s"] is None

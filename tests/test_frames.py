@@ -1,5 +1,7 @@
 """Coordinate frames and the sample clock (acoustic_sim.frames)."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,8 @@ from acoustic_sim.frames import (
     block_length,
     db_spl_to_pa,
     frame_end_sample,
+    head_to_body_azimuth,
+    head_to_body_elevation,
     pa_to_db_spl,
     rotation_zyx,
     sph_to_vec,
@@ -90,6 +94,24 @@ def test_rotation_maps():
     # A source 90 deg to the left of a head turned left by 90 deg is behind in the world.
     src = head_pos + rotation_zyx(90) @ sph_to_vec(90, 0)
     np.testing.assert_allclose(src - head_pos, [-1, 0, 0], atol=1e-12)
+
+
+def test_head_to_body_angles_match_the_rotation():
+    """The policies' scalar azimuth and elevation equal vec_to_sph of Rz(yaw) Ry(pitch) v, and
+    of the front-back mirror image (-x, y, z) with ``mirror``; to 1e-9 deg."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        v = rng.normal(size=3)
+        yaw, pitch, heading = rng.uniform(-math.pi, math.pi), rng.uniform(-0.8, 0.8), rng.uniform(-1.0, 1.0)
+        for mirror in (False, True):
+            w = v * np.array([-1.0, 1.0, 1.0]) if mirror else v
+            az, el = vec_to_sph(rotation_zyx(math.degrees(yaw + heading), math.degrees(pitch)) @ w)
+            got_az = math.degrees(head_to_body_azimuth(v, yaw, pitch, heading=heading, mirror=mirror))
+            got_el = math.degrees(head_to_body_elevation(v, pitch, mirror=mirror))
+            assert abs((got_az - float(az) + 180.0) % 360.0 - 180.0) < 1e-9
+            assert got_el == pytest.approx(float(el), abs=1e-9)
+    with pytest.raises(ValueError, match="zero length"):
+        head_to_body_elevation([0.0, 0.0, 0.0])
 
 
 def test_frame_clock_exact_for_an_hour():
