@@ -139,8 +139,8 @@ def head_to_body_elevation(v_head, pitch: float = 0.0, *, mirror: bool = False) 
     if mirror:
         x = -x
     n = math.sqrt(x * x + y * y + z * z)
-    if n == 0.0:
-        raise ValueError("a direction of zero length has no elevation")
+    if not (n > 0.0 and math.isfinite(n)):
+        raise ConfigError("a direction vector is zero or not finite: it has no elevation")
     return math.asin(max(-1.0, min(1.0, (z * math.cos(pitch) - x * math.sin(pitch)) / n)))
 
 

@@ -110,8 +110,9 @@ def test_head_to_body_angles_match_the_rotation():
             got_el = math.degrees(head_to_body_elevation(v, pitch, mirror=mirror))
             assert abs((got_az - float(az) + 180.0) % 360.0 - 180.0) < 1e-9
             assert got_el == pytest.approx(float(el), abs=1e-9)
-    with pytest.raises(ValueError, match="zero length"):
-        head_to_body_elevation([0.0, 0.0, 0.0])
+    for bad in ([0.0, 0.0, 0.0], [np.nan, 0.0, 1.0], [np.inf, 0.0, 0.0]):
+        with pytest.raises(ConfigError, match="no elevation"):
+            head_to_body_elevation(bad)
 
 
 def test_frame_clock_exact_for_an_hour():
