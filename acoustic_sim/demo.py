@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, in_front_sector
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -196,10 +196,11 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
     maz = np.array([car_azimuth_deg(v, n, mirror=True) if h else np.nan for v, n, h in zip(d, neck, has)])
     lo, hi = elevation_deg
-    el, mel = (np.array([math.degrees(head_to_body_elevation(v, float(n[1]), mirror=m)) if h else np.nan
-                         for v, n, h in zip(d, neck, has)]) for m in (False, True))
-    in_front = has & (np.abs(az) <= front_deg) & (el >= lo) & (el <= hi)
-    accepted = in_front | (has & mirror & (np.abs(maz) <= front_deg) & (mel >= lo) & (mel <= hi))
+    el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan for v, n, h in zip(d, neck, has)])
+    in_front, in_mirror = (np.array([h and in_front_sector(v, float(n[0]), float(n[1]), half_width_deg=front_deg,
+                                                           elevation_deg=elevation_deg, mirror=m)
+                                     for v, n, h in zip(d, neck, has)], dtype=bool) for m in (False, True))
+    accepted = in_front | (mirror & in_mirror)
     bounds = [f"azimuth +-{front_deg:.0f} deg"]
     if lo > -90.0:
         bounds.append(f"elevation at least {lo:+.0f} deg")
@@ -247,7 +248,8 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
                 region = (f"its front-back mirror image, {maz[j]:+.0f} deg, is "
                           f"{'inside' if accepted[j] else 'outside'} {front_region}")
             timeline.append((t[j], 3, (f"recognized as a reverse alarm (p = {p[j]:.2f}), {t[j] - onset:.2f} s after it "
-                                      f"started, from {a:+.0f} deg azimuth, {el[j]:+.0f} deg elevation ({side_words(a)}; {region})")))
+                                      f"started, from {a:+.0f} deg azimuth, {el[j]:+.0f} deg elevation "
+                                      f"({side_words(a)}; {region})")))
             moments.update(recognized_s=float(t[j]), recognized_azimuth_deg=a)
             front = after[accepted[after]]
             if front.size and front[0] != j:

@@ -33,7 +33,7 @@ from collections import deque
 
 import numpy as np
 
-from acoustic_sim.frames import head_to_body_azimuth, head_to_body_elevation
+from acoustic_sim.frames import head_to_body_azimuth, in_front_sector
 from tasks.base import CLASSES, CONTROL_DT, lever_arm_angles
 
 
@@ -242,12 +242,13 @@ class ScriptedReverseAlarm(LeverPolicy):
 
     Held out before the elevation bound (seeds 2000-2099): 0.92 with 3 false releases, each
     another vehicle's beeper on the left placed at the alarm's front-back mirror image or high
-    up (2048, 2064, 2079: the ambiguity described above), and 5 that never let go. In the two looked at, no beep was placed in
-    front within ``credit_s`` of the lever's stop: in 2019 a car horn stopped the lever (0.1 s
-    after the horn began: MelCNN's delay), the lever still slid into R and the alarm sounded
-    under the horn, its first placed beep 1.2 s after the stop; in 2088 the first beep was
-    placed outside the region and the next ones not at all (then under the radio). Before
-    waiting for quiet, on the held-out seeds of then (1000-1099): 0.86 with 3.
+    up (2048, 2064, 2079: the ambiguity described above), and 5 that never let go. In the two
+    looked at, no beep was placed in front within ``credit_s`` of the lever's stop: in 2019 a
+    car horn stopped the lever (0.1 s after the horn began: MelCNN's delay), the lever still
+    slid into R and the alarm sounded under the horn, its first placed beep 1.2 s after the
+    stop; in 2088 the first beep was placed outside the region and the next ones not at all
+    (then under the radio). Before waiting for quiet, on the held-out seeds of then
+    (1000-1099): 0.86 with 3.
 
     Where it failed before waiting for quiet (paper models, seeds 100-199): 0.89 (95 %
     interval 0.81-0.94), no false release, 11 late, each a first beep that gave no accepted
@@ -335,12 +336,10 @@ class ScriptedReverseAlarm(LeverPolicy):
         """The alarm's region: in front of the car (azimuth within ``front_deg``, elevation
         within ``elevation_deg``), or the front-back mirror image of that with respect to the
         head (``mirror``); ``obs`` gives the neck's pose."""
-        lo, hi = self.elevation_deg
-        for mirror in (False, True) if self.mirror else (False,):
-            if (abs(math.degrees(fixed_azimuth(obs, direction, mirror=mirror))) <= self.front_deg
-                    and lo <= math.degrees(fixed_elevation(obs, direction, mirror=mirror)) <= hi):
-                return True
-        return False
+        yaw, pitch = float(obs["joint_pos"][0]), float(obs["joint_pos"][1])
+        heading = float(obs["base"][0]) if "base" in obs else 0.0
+        return any(in_front_sector(direction, yaw, pitch, half_width_deg=self.front_deg, elevation_deg=self.elevation_deg,
+                                   heading=heading, mirror=m) for m in ((False, True) if self.mirror else (False,)))
 
     def should_release(self, obs, info) -> bool:
         if not self.hold:  # the lever moved in the last step
@@ -489,13 +488,6 @@ POLICY_CLASSES["parking-brake"] = ScriptedParkingBrake
 
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def fixed_elevation(obs, v_head, *, mirror: bool = False) -> float:
-    """Elevation (rad, + up) in the frame fixed at the episode's start of a head-frame
-    vector (``mirror``: of its front-back mirror image), by the neck's pitch; see
-    :func:`fixed_azimuth`."""
-    return head_to_body_elevation(v_head, float(obs["joint_pos"][1]), mirror=mirror)
 
 
 def fixed_azimuth(obs, v_head, *, mirror: bool = False) -> float:

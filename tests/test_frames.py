@@ -15,6 +15,7 @@ from acoustic_sim.frames import (
     frame_end_sample,
     head_to_body_azimuth,
     head_to_body_elevation,
+    in_front_sector,
     pa_to_db_spl,
     rotation_zyx,
     sph_to_vec,
@@ -113,6 +114,20 @@ def test_head_to_body_angles_match_the_rotation():
     for bad in ([0.0, 0.0, 0.0], [np.nan, 0.0, 1.0], [np.inf, 0.0, 0.0]):
         with pytest.raises(ConfigError, match="no elevation"):
             head_to_body_elevation(bad)
+
+
+def test_in_front_sector():
+    """Azimuth within the half-width of the body's front and elevation within the bounds, of
+    the direction or (mirror) its front-back mirror image, the head turned 45 deg right."""
+    yaw = math.radians(-45.0)
+
+    def inside(az, el, **kw):
+        return in_front_sector(sph_to_vec(az, el), yaw, half_width_deg=20.0, elevation_deg=(-90.0, 20.0), **kw)
+
+    assert inside(45.0, -10.0) and inside(60.0, 0.0) and not inside(70.0, 0.0)  # car azimuth 0, +15, +25 deg
+    assert not inside(45.0, 30.0) and inside(45.0, -80.0)  # above the bound; no lower bound
+    assert not inside(135.0, -10.0) and inside(135.0, -10.0, mirror=True)  # car +90 deg; its mirror image is in front
+    assert in_front_sector(sph_to_vec(-30.0, 0.0), half_width_deg=20.0, heading=math.radians(30.0))  # the body turned
 
 
 def test_frame_clock_exact_for_an_hour():

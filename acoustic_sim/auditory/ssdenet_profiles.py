@@ -338,21 +338,22 @@ Variants measured in the cabin tasks, where the regression tests use this profil
 policies, test seeds 100-119 with training seeds 0, 1 and 2, and seeds 1000-1099; a ``/tmp``
 script, 2026-12-04). This profile: ReverseAlarm 18, 15 and 14 of 20, each with one false
 release, ParkingBrake 18, 19 and 19 with none; on 1000-1099 ReverseAlarm 89 with none
-(training seed 0) and 78 with 1 (seed 1), ParkingBrake 89 with 1. Jittered sources as in
-the paper profile (``jitter_deg=6``, ``sigma_deg=6``, the same training time): ReverseAlarm
-19 of 20 with none for all three seeds, ParkingBrake 18, 19 and 19 with none; on 1000-1099
+(training seed 0) and 78 with 1 (seed 1), ParkingBrake 89 with 1. Jittered sources as in the
+paper profile (``jitter_deg=6``, ``sigma_deg=6``, the same training time): ReverseAlarm 19
+of 20 with none for all three seeds, ParkingBrake 18, 19 and 19 with none; on 1000-1099
 ReverseAlarm 90 with none and ParkingBrake 91 with 1 for seeds 0 and 1 alike; but white
 noise through KEMAR's HRIRs at the grid directions (rendered as ``tests/test_ssdenet.py``'s
 grid test does) 21.4 deg mean error (14.6 off the median plane, 81 % within 20 deg), against
-this profile's 4.7 (0.5, 99 % that way), and 24.1 against 20.7 over all 710 measured directions: the accuracy that the unit tests and issue 3's anechoic
-test check. The same with 400 sounds and 3 epochs (35 s): 14.4 (8.9, 88 %) and 18.6 deg,
-but ReverseAlarm 18 and 19 of 20 (seeds 0, 1) and 85 on 1000-1099. ``sigma_deg=6`` alone:
-ReverseAlarm 18 with one false release and 19 with none (seeds 0, 1), 86 with 1 on
-1000-1099 (seed 1). The paper profile's 32 bins at this size (twice the training time):
-ReverseAlarm 19, 19 and 18 with none, ParkingBrake 19, 19 and 16; on 1000-1099 93 with 2
-false releases and 92 with 1. None is better in the tasks for every training seed and in the
-anechoic tests, so the profile stays, and the tests' cabin targets stay expected failures
-with a floor (``tests/test_policies.py``).
+this profile's 4.7 (0.5, 99 % that way), and 24.1 against 20.7 over all 710 measured
+directions: the accuracy that the unit tests and issue 3's anechoic test check. The same
+with 400 sounds and 3 epochs (35 s): 14.4 (8.9, 88 %) and 18.6 deg, but ReverseAlarm 18 and
+19 of 20 (seeds 0, 1) and 85 on 1000-1099. ``sigma_deg=6`` alone: ReverseAlarm 18 with one
+false release and 19 with none (seeds 0, 1), 86 with 1 on 1000-1099 (seed 1). The paper
+profile's 32 bins at this size (twice the training time): ReverseAlarm 19, 19 and 18 with
+none, ParkingBrake 19, 19 and 16; on 1000-1099 93 with 2 false releases and 92 with 1. None
+is better in the tasks for every training seed and in the anechoic tests, so the profile
+stays, and the tests' cabin targets stay expected failures with a floor
+(``tests/test_policies.py``).
 """
 
 PROFILES: dict[str, SSDENetProfile] = {"paper": PAPER, "fast": FAST}
