@@ -336,8 +336,7 @@ class ScriptedReverseAlarm(LeverPolicy):
         """The alarm's region: in front of the car (azimuth within ``front_deg``, elevation
         within ``elevation_deg``), or the front-back mirror image of that with respect to the
         head (``mirror``); ``obs`` gives the neck's pose."""
-        yaw, pitch = float(obs["joint_pos"][0]), float(obs["joint_pos"][1])
-        heading = float(obs["base"][0]) if "base" in obs else 0.0
+        yaw, pitch, heading = head_pose(obs)
         return any(in_front_sector(direction, yaw, pitch, half_width_deg=self.front_deg, elevation_deg=self.elevation_deg,
                                    heading=heading, mirror=m) for m in ((False, True) if self.mirror else (False,)))
 
@@ -490,17 +489,21 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def head_pose(obs) -> tuple[float, float, float]:
+    """The head's turn on the frame fixed at the episode's start, from the observation: the
+    neck's yaw and pitch (rad, proprioception) and the wheelchair's odometry heading (rad; 0
+    without a wheelchair, no ``base`` in the observation: the car seat), so that
+    ``v = Rz(heading) Rz(neck_yaw) Ry(neck_pitch) v_head``."""
+    heading = float(obs["base"][0]) if "base" in obs else 0.0
+    return float(obs["joint_pos"][0]), float(obs["joint_pos"][1]), heading
+
+
 def fixed_azimuth(obs, v_head, *, mirror: bool = False) -> float:
     """Azimuth (rad, + left) in the frame fixed at the episode's start, from a head-frame vector
-    (``mirror``: of its front-back mirror image, see :func:`~acoustic_sim.frames.head_to_body_azimuth`).
-
-    The head turns on the wheelchair by the neck's yaw then pitch (proprioception), the
-    wheelchair by its odometry heading: ``v = Rz(heading) Rz(neck_yaw) Ry(neck_pitch) v_head``.
-    Without a wheelchair (no ``base`` in the observation: the car seat) the heading is 0.
-    """
-    heading = float(obs["base"][0]) if "base" in obs else 0.0
-    return head_to_body_azimuth(v_head, float(obs["joint_pos"][0]), float(obs["joint_pos"][1]), heading=heading,
-                                mirror=mirror)
+    (``mirror``: of its front-back mirror image, see :func:`~acoustic_sim.frames.head_to_body_azimuth`),
+    the head turned by :func:`head_pose`."""
+    yaw, pitch, heading = head_pose(obs)
+    return head_to_body_azimuth(v_head, yaw, pitch, heading=heading, mirror=mirror)
 
 
 class TurnPolicy(TaskPolicy):

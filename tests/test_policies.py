@@ -162,8 +162,11 @@ ParkingBrake 18 / 19 / 19 with none; median reactions 0.09 s and 0.05 s with eac
 the waiting, 18 / 12 / 15 and 17 / 12 / 16 with up to 3 false releases, and the floor was
 0.55 and 0.20), and CI trains its own models on another CPU, which is another draw.
 ``blind`` on the same episodes: 10 and 5 of 20, false releases 0.50 and 0.75. The floor
-sits two episodes below the worst seed and well above ``blind``, and above what the
-policies did before waiting for quiet with the worst seed (0.60)."""
+sat two episodes below the worst seed and well above ``blind``, and above what the
+policies did before waiting for quiet with the worst seed (0.60). With ReverseAlarm's
+elevation bound (session 19): ReverseAlarm 18 / 15 / 14 of 20 with one false release each,
+ParkingBrake unchanged (the bound is ReverseAlarm's), so seed 2 is now one episode above
+the floor."""
 
 
 @pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
