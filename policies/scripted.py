@@ -235,6 +235,10 @@ class ScriptedReverseAlarm(LeverPolicy):
     listening pose separates them; measured (no elevation bound): the head turned 70 deg
     right, 90/100 with 7 false releases on 1000-1099 (95 with 2 on 200-299); 85 deg right, 85
     with 6; 80 deg left (the alarm's mirror image 20 deg right of the front), 85 with 5.
+    With the line of sight through the body instead of the nearest point (what the first
+    wavefront would do; measured with a ``/tmp`` patch, not the world's law) the beepers on
+    the left come from 68-112 deg, onto the mirror sector: the pose and the rule would have
+    to change with it (:func:`tasks.soundscape.outside_placement` has the figures).
 
     Held out (seeds 3000-3099, which no choice looked at; ``acoustic-sim eval tasks``,
     ``results/tasks``): 0.96 (95 % interval 0.90-0.98), no false release, 4 that never let
