@@ -111,6 +111,15 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     54; 25 deg right without the mirror image 14 (the alarm near the median plane is mostly
     placed behind); a lateral rule instead of the sectors (lateral angle from the turned head
     10-38 deg at 25 deg right: 82 with none; 15-40 deg at 30 deg right: 86 with 1).
+    Paper models under that law, 1000-1099 (96 with 3 false releases under this one): the
+    policy as is 94 with 4; the lateral rule 10-38 deg at 25 deg right 90 with none (5-42
+    deg: the same), 15-40 deg at 30 deg right 87 with none, the sectors at 30 deg right 83
+    with none; lateral 5-36 deg with the head 22 deg right: 98 with none, 2000-2099 95 with
+    none (91 with 1 now), 100-199 95 with 2 (99 with none now). But the fast models with that
+    rule: 10 of 20 on the test seeds, 73 on 1000-1099 (none false): near the median plane
+    their lateral angles scatter. So the law and the policy would have to change together,
+    and the fast models (the tests') would first have to place a source 20 deg off the
+    median plane; the demo's narration and figure speak of sectors, not lateral angles.
     ParkingBrake has no outside sounds (100-119 unchanged).
 
     Parameters
