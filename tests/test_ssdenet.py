@@ -32,7 +32,9 @@ def grid(kemar):
 
 @pytest.fixture(scope="module")
 def fast_bank(kemar, grid):
-    return T.train_bank(kemar, grid, "fast", progress=False)
+    """The test session's cached ``fast`` kemar bank: the one the task and pipeline tests use
+    (trained once per test run, in the session's own model cache)."""
+    return S.SSDENetBank.load_or_train(kemar, grid, "fast", progress=False)
 
 
 @pytest.fixture(scope="module")
