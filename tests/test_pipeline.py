@@ -125,12 +125,10 @@ def test_cli_localize_and_detect_print_json_lines(tmp_path, kemar):
 def test_cli_refuses_a_checkpoint_of_another_hrtf(tmp_path, spherical):
     from acoustic_sim.auditory.ssdenet import SSDENetBank
     from acoustic_sim.directions import DirectionGrid
-
-    from acoustic_sim.auditory.ssdenet import SSDENetProfile
+    from profiles import TINY
 
     ckpt = tmp_path / "sphere.pt"
-    tiny = SSDENetProfile(name="tiny", hidden=8, bins=(20, 120, 400), sounds=4, epochs=1, batch_size=128, threads=1)
-    SSDENetBank.rebuild(spherical, DirectionGrid.paper(spherical), tiny, progress=False, path=ckpt)  # any profile will do
+    SSDENetBank.rebuild(spherical, DirectionGrid.paper(spherical), TINY, progress=False, path=ckpt)  # any profile will do
     wav = tmp_path / "n.wav"
     assert _cli("render", "--sound", "white_noise", "--seconds", "0.3", "--out", str(wav)).returncode == 0
     r = _cli("localize", str(wav), "--hrtf", "kemar", "--ssdenet", str(ckpt))

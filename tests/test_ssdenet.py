@@ -20,9 +20,7 @@ from acoustic_sim.auditory.frontend import N_BINS, N_FFT, analyze, leakage_envel
 from acoustic_sim.directions import DirectionGrid, angular_error_deg
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import sph_to_vec
-
-TINY = S.SSDENetProfile(name="tiny", hidden=8, bins=(20, 120, 400), sounds=4, epochs=1, batch_size=128, threads=1)
-"""A profile that trains in well under a second (for determinism and checkpoint tests)."""
+from profiles import TINY
 
 
 @pytest.fixture(scope="module")
