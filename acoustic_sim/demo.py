@@ -12,9 +12,10 @@ step hook feeds both the rerun recording and this module's trace.
 
 ``demo.png``
     Left and right mel spectrograms, the class probabilities (shaded where the lever waited
-    for quiet), and the estimated
-    azimuth of the reverse alarm over time with the true azimuths of the alarm and of any
-    beeping distractor, events marked as vertical lines (as the paper's task figures).
+    for quiet), and the estimated lateral angle of the reverse alarm from the turned head
+    over time (the angle the policy's rule reads, its accepted band shaded) with the true
+    ones of the alarm and of any beeping distractor, events marked as vertical lines (as the
+    paper's task figures).
 ``demo.rrd``
     The rerun recording of the episode (``acoustic-sim play OUT/demo.rrd``).
 ``demo.wav``
@@ -39,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, in_front_sector
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, lateral_deg
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -66,6 +67,9 @@ class Trace:
     true_az : list of dict
         Per step, the true azimuth (deg, car frame) of each sound playing, by source name
         (ground truth from ``info``, used only to tell the reader what was really there).
+    true_lateral : list of dict
+        The same for the true lateral angle from the turned head (deg, + left: the angle the
+        policy's rule reads; :func:`~acoustic_sim.frames.lateral_deg`).
     labels : dict
         Source name -> sound class of every source that played.
     audio : list of numpy.ndarray
@@ -86,6 +90,7 @@ class Trace:
     neck: list = dataclasses.field(default_factory=list)
     confidence: list = dataclasses.field(default_factory=list)
     true_az: list = dataclasses.field(default_factory=list)
+    true_lateral: list = dataclasses.field(default_factory=list)
     labels: dict = dataclasses.field(default_factory=dict)
     audio: list = dataclasses.field(default_factory=list)
     events: list = dataclasses.field(default_factory=list)
@@ -111,11 +116,13 @@ class Trace:
         neck = np.array(obs["joint_pos"][:2], dtype=np.float64)
         self.neck.append(neck)
         self.confidence.append(np.array(obs["class_conf"], dtype=np.float64))
-        az = {}
+        az, lat = {}, {}
         for snd in info["sounding"]:
             az[snd["source"]] = car_azimuth_deg(snd["direction"], neck)
+            lat[snd["source"]] = lateral_deg(snd["direction"])
             self.labels[snd["source"]] = snd["label"]
         self.true_az.append(az)
+        self.true_lateral.append(lat)
         if step > 0:
             self.audio.append(np.array(env.last_audio, dtype=np.float32))
         for e in info["events"]:
@@ -148,8 +155,8 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(idx[::2], idx[1::2])]
 
 
-def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, success_window_s: float, seed: int,
-            profile: str, mirror: bool = False, elevation_deg: tuple = (-90.0, 90.0)) -> tuple[str, dict]:
+def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: tuple, success_window_s: float, seed: int,
+            profile: str, elevation_deg: tuple = (-90.0, 90.0)) -> tuple[str, dict]:
     """The episode in words, in time order, and the moments it names (for ``demo.json``).
 
     What the robot heard comes from the observations (the reverse alarm's probability and
@@ -163,13 +170,12 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         The runner's record of the episode.
     threshold : float
         Probability from which the alarm counts as heard (the scripted policy's), 0..1.
-    front_deg : float
-        Half-width (deg of azimuth, car frame) of the region the policy accepts as "in front".
-    mirror : bool
-        The policy also accepts a direction whose front-back mirror image (through the
-        head's interaural axis) is in front (:class:`policies.scripted.ScriptedReverseAlarm`).
+    lateral_range_deg : tuple of float
+        (lowest, highest) lateral angle from the turned head (deg, + left) that the policy
+        accepts as the alarm's (:class:`policies.scripted.ScriptedReverseAlarm`: the
+        dashboard speaker and its front-back mirror image, which the ears cannot tell apart).
     elevation_deg : tuple of float
-        (lowest, highest) elevation (deg, car frame) of the front region (the policy's).
+        (lowest, highest) elevation (deg, car frame) of that region (the policy's).
     success_window_s : float
         Longest alarm-to-release time of a success (the task's), s.
     seed : int
@@ -179,7 +185,8 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     -------
     text : str
     moments : dict
-        ``alarm_start_s``, ``recognized_s``, ``recognized_azimuth_deg``, ``front_s``,
+        ``alarm_start_s``, ``recognized_s``, ``recognized_azimuth_deg``, ``accepted_s`` (first
+        placed in the alarm's region),
         ``release_s`` (seconds since the episode's start, None when it did not happen) and
         ``outcome``.
     """
@@ -194,24 +201,21 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
     heard = (p >= threshold) & has
     neck = trace.necks()
     az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
-    maz = np.array([car_azimuth_deg(v, n, mirror=True) if h else np.nan for v, n, h in zip(d, neck, has)])
-    lo, hi = elevation_deg
+    lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
     el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan for v, n, h in zip(d, neck, has)])
-    in_front, in_mirror = (np.array([h and in_front_sector(v, float(n[0]), float(n[1]), half_width_deg=front_deg,
-                                                           elevation_deg=elevation_deg, mirror=m)
-                                     for v, n, h in zip(d, neck, has)], dtype=bool) for m in (False, True))
-    accepted = in_front | (mirror & in_mirror)
-    bounds = [f"azimuth +-{front_deg:.0f} deg"]
+    (llo, lhi), (lo, hi) = lateral_range_deg, elevation_deg
+    accepted = np.array([h and llo <= x <= lhi and lo <= e <= hi for h, x, e in zip(has, lat, el)], dtype=bool)
+    bounds = [f"lateral angle {llo:+.0f} to {lhi:+.0f} deg from the turned head"]
     if lo > -90.0:
         bounds.append(f"elevation at least {lo:+.0f} deg")
     if hi < 90.0:
         bounds.append(f"elevation at most {hi:+.0f} deg")
-    front_region = f"the front region: {', '.join(bounds)}"
+    region = f"the alarm's region: {', '.join(bounds)}"
     onset = record["target_onset_s"]
     onset = None if onset is None else onset - trace.start_s
     release = record.get("release_s")
     release = None if release is None else release - trace.start_s
-    moments: dict = {"alarm_start_s": onset, "recognized_s": None, "recognized_azimuth_deg": None, "front_s": None,
+    moments: dict = {"alarm_start_s": onset, "recognized_s": None, "recognized_azimuth_deg": None, "accepted_s": None,
                      "release_s": release, "outcome": record["outcome"]}
     timeline: list[tuple[float, int, str]] = []  # (time, order at equal times, text)
 
@@ -229,7 +233,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         masked = sorted({c.replace("_", " ") for w in trace.waiting[a:b + 1] for c in (w[1] if w[0] == "masked" else ())})
         why = [f"hearing {', '.join(masked)}"] if masked else []
         if any(w[0] == "settling" for w in trace.waiting[a:b + 1]):
-            why.append(f"after a {LABEL.replace('_', ' ')} not placed in front")
+            why.append(f"after a {LABEL.replace('_', ' ')} placed outside the alarm's region")
         timeline.append((t[a], 1, f"the lever waits for quiet ({'; '.join(why)}) until {t[min(b + 1, len(t) - 1)]:.2f} s"))
     tail = []
     if onset is None:
@@ -242,27 +246,23 @@ def narrate(trace: Trace, record: dict, *, threshold: float, front_deg: float, s
         if after.size:
             j = int(after[0])
             a = float(az[j])
-            if abs(a) <= front_deg or not mirror:
-                region = f"{'inside' if in_front[j] else 'outside'} {front_region}"
-            else:
-                region = (f"its front-back mirror image, {maz[j]:+.0f} deg, is "
-                          f"{'inside' if accepted[j] else 'outside'} {front_region}")
             timeline.append((t[j], 3, (f"recognized as a reverse alarm (p = {p[j]:.2f}), {t[j] - onset:.2f} s after it "
                                       f"started, from {a:+.0f} deg azimuth, {el[j]:+.0f} deg elevation "
-                                      f"({side_words(a)}; {region})")))
+                                      f"({side_words(a)}; lateral {lat[j]:+.0f} deg from the head, "
+                                      f"{'inside' if accepted[j] else 'outside'} {region})")))
             moments.update(recognized_s=float(t[j]), recognized_azimuth_deg=a)
-            front = after[accepted[after]]
-            if front.size and front[0] != j:
-                f = int(front[0])
-                via = f" (its mirror image: {maz[f]:+.0f} deg)" if abs(az[f]) > front_deg else ""
-                timeline.append((t[f], 4, f"first heard from the front: {az[f]:+.0f} deg{via}"))
-            if front.size:
-                moments["front_s"] = float(t[int(front[0])])
+            inside = after[accepted[after]]
+            if inside.size and inside[0] != j:
+                f = int(inside[0])
+                timeline.append((t[f], 4, f"first placed in the alarm's region: lateral {lat[f]:+.0f} deg "
+                                          f"({az[f]:+.0f} deg azimuth, {el[f]:+.0f} deg elevation)"))
+            if inside.size:
+                moments["accepted_s"] = float(t[int(inside[0])])
             upto = after[t[after] <= (release if release is not None else np.inf)]
             n_front = int(np.sum(accepted[upto]))
             tail.append(f"while the alarm sounded{' and the hand held on' if release is not None else ''}, "
                         f"{upto.size} frames heard it with a direction: median {float(np.median(az[upto])):+.0f} deg, "
-                        f"{n_front} of them from the front{' or its mirror image' if mirror else ''}")
+                        f"{n_front} of them in the alarm's region")
         else:
             best = float(np.max(p[t >= onset])) if np.any(t >= onset) else float("nan")
             tail.append(f"the alarm was never recognized with a direction (highest probability {best:.2f}, "
@@ -301,9 +301,9 @@ def _truth(trace: Trace, a: int, b: int) -> str:
     return f" (it was {name}, truly {m:+.0f} deg, {side_words(m)})"
 
 
-def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_deg: float, title: str,
-           mirror: bool = False) -> None:
-    """``demo.png``: mel spectrograms, the class probabilities and the alarm's estimated azimuth.
+def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral_range_deg: tuple, title: str) -> None:
+    """``demo.png``: mel spectrograms, the class probabilities and the alarm's estimated
+    lateral angle from the head (the angle the policy's rule reads).
 
     Parameters
     ----------
@@ -314,11 +314,9 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
         The PNG to write (parent folders are created).
     threshold : float
         The policy's probability threshold (a dotted line; estimates above it in red).
-    front_deg : float
-        Half-width of the accepted front region (shaded), deg.
-    mirror : bool
-        Also shade the front region's front-back mirror image (through the head's
-        interaural axis, at the neck's median yaw), which the policy accepts too.
+    lateral_range_deg : tuple of float
+        The lateral angles (deg, + left, from the turned head) the policy accepts as the
+        alarm's (shaded).
     title : str
     """
     import matplotlib
@@ -364,28 +362,23 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
     axes[2].set_ylim(-0.02, 1.02)
     axes[2].set_ylabel("class\nprobability")
     axes[2].legend(loc="upper left", fontsize=7, ncol=3)
-    axes[3].axhspan(-front_deg, front_deg, color="tab:green", alpha=0.08, lw=0,
-                    label=f"front region (+-{front_deg:g} deg)")
-    neck = trace.necks()
-    if mirror:
-        yaw = math.degrees(float(np.median([n[0] for n in neck]))) if neck else 0.0
-        centre = (180.0 + 2.0 * yaw + 180.0) % 360.0 - 180.0
-        axes[3].axhspan(centre - front_deg, centre + front_deg, color="tab:olive", alpha=0.08, lw=0,
-                        label="its front-back mirror for the ears")
+    lo, hi = lateral_range_deg
+    axes[3].axhspan(lo, hi, color="tab:green", alpha=0.1, lw=0,
+                    label=f"alarm's region ({lo:+g} to {hi:+g} deg: in front, or its mirror behind)")
     d = np.array([x[k] for x in trace.direction])
     has = np.linalg.norm(d, axis=1) > 0.5
-    az = np.array([car_azimuth_deg(v, n) for v, n in zip(d, neck)])
+    lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
     on = has & (p >= threshold)
-    axes[3].scatter(t[has & ~on], az[has & ~on], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
-    axes[3].scatter(t[on], az[on], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
+    axes[3].scatter(t[has & ~on], lat[has & ~on], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
+    axes[3].scatter(t[on], lat[on], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
     for src, style in _true_tracks(trace):
-        ys = np.array([x.get(src, np.nan) for x in trace.true_az])
+        ys = np.array([x.get(src, np.nan) for x in trace.true_lateral]) if trace.true_lateral else np.full(t.size, np.nan)
         axes[3].plot(t, ys, **style)
-    axes[3].set_ylim(-185, 185)
-    axes[3].set_yticks([-180, -90, 0, 90, 180], ["-180\nbehind", "-90\nright", "0\nfront", "90\nleft", "180\nbehind"])
-    axes[3].set_ylabel("reverse alarm\nazimuth (deg, car)")
+    axes[3].set_ylim(-92, 92)
+    axes[3].set_yticks([-90, -45, 0, 45, 90], ["-90\nright", "-45", "0", "+45", "+90\nleft"])
+    axes[3].set_ylabel("reverse alarm: lateral angle\nfrom the head (deg; 0: its\nmedian plane)")
     axes[3].set_xlabel("time since the episode's start (s)")
-    axes[3].legend(loc="upper left", fontsize=7, ncol=2)
+    axes[3].legend(loc="lower left", fontsize=7, ncol=2)
     marks = [("alarm_start_s", "alarm starts", "tab:red"), ("recognized_s", "recognized", "tab:orange"),
              ("release_s", "hand lets go", "tab:green")]
     t_end = max(float(t[-1]) if t.size else 1.0, 0.5)
@@ -402,7 +395,7 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, front_d
         if e["kind"] == "distractor":
             for ax in axes[2:]:
                 ax.axvline(te, color="0.4", lw=0.8, ls=":")
-            axes[3].text(te, -178, f" {e['label'].replace('_', ' ')}", color="0.3", va="bottom", ha="right", fontsize=7,
+            axes[3].text(te, 88, f"{e['label'].replace('_', ' ')} ", color="0.3", va="top", ha="right", fontsize=7,
                          rotation=90)
     axes[0].set_title(title, fontsize=10)
     axes[3].set_xlim(0.0, t_end)
@@ -483,14 +476,13 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     finally:
         recorder.close()
     threshold = float(policy.threshold)
-    mirror = bool(getattr(policy, "mirror", False))
-    text, moments = narrate(trace, record, threshold=threshold, front_deg=float(policy.front_deg),
-                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile, mirror=mirror,
+    lateral = tuple(float(x) for x in policy.lateral_range_deg)
+    text, moments = narrate(trace, record, threshold=threshold, lateral_range_deg=lateral,
+                            success_window_s=float(env.success_window_s), seed=int(seed), profile=profile,
                             elevation_deg=tuple(float(x) for x in getattr(policy, "elevation_deg", (-90.0, 90.0))))
     title = (f"ReverseAlarm, scripted policy, seed {seed}, {profile} models: "
              f"{record['outcome'].replace('_', ' ')}")
-    figure(trace, moments, out / "demo.png", threshold=threshold, front_deg=float(policy.front_deg), title=title,
-           mirror=mirror)
+    figure(trace, moments, out / "demo.png", threshold=threshold, lateral_range_deg=lateral, title=title)
     import soundfile as sf
 
     audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)

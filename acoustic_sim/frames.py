@@ -144,17 +144,15 @@ def head_to_body_elevation(v_head, pitch: float = 0.0, *, mirror: bool = False) 
     return math.asin(max(-1.0, min(1.0, (z * math.cos(pitch) - x * math.sin(pitch)) / n)))
 
 
-def in_front_sector(v_head, yaw: float = 0.0, pitch: float = 0.0, *, half_width_deg: float,
-                    elevation_deg: tuple = (-90.0, 90.0), heading: float = 0.0, mirror: bool = False) -> bool:
-    """Whether a head-frame direction (``mirror``: its front-back mirror image) lies in the
-    body's front sector: azimuth within ``half_width_deg`` of straight ahead and elevation
-    within ``elevation_deg`` (lowest, highest; deg), the head turned as in
-    :func:`head_to_body_azimuth`. The scripted ReverseAlarm policy's test of "in front", and
-    the demo's narration of it.
-    """
-    lo, hi = elevation_deg
-    az = math.degrees(head_to_body_azimuth(v_head, yaw, pitch, heading=heading, mirror=mirror))
-    return abs(az) <= half_width_deg and lo <= math.degrees(head_to_body_elevation(v_head, pitch, mirror=mirror)) <= hi
+def lateral_deg(v_head) -> float:
+    """Lateral angle (deg, + left, -90..90) of a head-frame vector: its angle to the head's
+    median plane, the one angle that interaural cues give (every direction on the cone of
+    confusion around the interaural axis has the same). The scripted ReverseAlarm and
+    ParkingBrake policies' test of where a sound is, and the demo's narration of it. Scalar
+    math: the policies call it every control step."""
+    x, y, z = (float(c) for c in v_head)
+    n = math.sqrt(x * x + y * y + z * z)
+    return math.degrees(math.asin(max(-1.0, min(1.0, y / max(n, 1e-12)))))
 
 
 def world_to_head(points_world, head_position, head_rotation) -> np.ndarray:

@@ -17,8 +17,10 @@ Positions are in metres, in one of two frames:
 - ``"world"``: MuJoCo's world frame (z up), e.g. a site's position read from the view.
 
 A point outside the acoustic room (another vehicle) plays, as the coupling plays the car
-horn, from the nearest point just inside the walls at its level minus the car body's
-transmission loss and minus the spreading to that point (:func:`outside_placement`).
+horn, from where the straight line from it to the head enters the room, just inside the
+walls, at its level minus the car body's transmission loss and minus the spreading to that
+point (:func:`outside_placement`): the first wavefront through the body comes from the
+source's own direction.
 
 The soundscape also keeps the ground truth: the event records of the world's events and of
 the task sounds as they start (:meth:`Soundscape.begin_block`), and the sounds playing with
@@ -92,45 +94,31 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     """Where and how loud a source outside the acoustic room plays inside it.
 
     The coupling's law for the car horn (:mod:`acoustic_sim.world.coupling`): from the point
-    ``margin`` inside the walls nearest to ``point_room``, at ``level_db`` minus the body's
-    transmission loss and minus the spreading ``20 log10(max(d, 1 m))`` from the source to
-    that point.
+    ``margin`` inside the walls where the straight line from ``point_room`` to the head
+    (``coupling.head_position``, at the time of the call) enters the room
+    (:meth:`~acoustic_sim.world.coupling.RoomFrame.entry_point`), at ``level_db`` minus the
+    body's transmission loss and minus the spreading ``20 log10(max(d, 1 m))`` from the
+    source to that point.
 
-    A known simplification, measured and left (2026-12-04): of the paths through the body
-    the straight one from the source to the head arrives first, and the first wavefront
-    gives a sound its direction, so a source beside the cabin should be heard from its own
-    direction. The nearest point brings a source 2-6 m beside the cabin and 0.5-1 m ahead of
-    the head in through the window next to it, 19-35 deg from straight ahead, where the line
-    of sight gives 68-86 deg (its path that way is 0.2-0.5 m longer). Playing from where the
-    line from the source to the head enters the room (a ``/tmp`` patch; the horn likewise)
-    moves ReverseAlarm's beepers on the left onto the front's mirror image from the policy's
-    listening pose (45 deg right: the mirror is 90 deg left of the car), so the policy would
-    have to change with the law. Fast models, seeds 1000-1099 (ReverseAlarm 89 with no false
-    release under this law): head 45 deg right, as now, 87 with 2 false releases (test seeds
-    100-119: 17/20 with 2); 30 deg right 85 with 2; 25 deg right 78 with none; 20 deg right
-    54; 25 deg right without the mirror image 14 (the alarm near the median plane is mostly
-    placed behind); a lateral rule instead of the sectors (lateral angle from the turned head
-    10-38 deg at 25 deg right: 82 with none; 15-40 deg at 30 deg right: 86 with 1).
-    Paper models under that law, 1000-1099 (96 with 3 false releases under this one): the
-    policy as is 94 with 4; the lateral rule 10-38 deg at 25 deg right 90 with none (5-42
-    deg: the same), 15-40 deg at 30 deg right 87 with none, the sectors at 30 deg right 83
-    with none; lateral 5-36 deg with the head 22 deg right: 98 with none, 2000-2099 95 with
-    none (91 with 1 now), 100-199 95 with 2 (99 with none now), 200-299 89 with 3 (96 with
-    none now): over the four ranges 377 of 400 with 5 false releases, against 382 with 4
-    today. But the fast models with that rule: 10 of 20 on the test seeds, 73 on 1000-1099
-    (none false): near the median plane their lateral angles scatter. So the law and the
-    policy would have to change together, and the fast models (the tests') would first have
-    to place a source 20 deg off the median plane; the demo's narration and figure speak of
-    sectors, not lateral angles. The fast recipes with jittered sources on the paper's 32
-    bins (:data:`~acoustic_sim.auditory.ssdenet_profiles.FAST` lists them) do: with that rule
-    and law, on the test seeds 100-119 for training seeds 0, 1 and 2, 400 sounds and 3
-    epochs ReverseAlarm 18, 20 and 18 of 20 (98 on 1000-1099, seed 0), 600 sounds and 4
-    epochs 19, 19 and 20 (91 on 1000-1099), no false release in any (ParkingBrake, which the
-    law leaves alone, 19, 19 and 19 with none for the first). That is a way to the tests'
-    targets; it needs the paper models' five false releases (134, 157, 214, 236, 285), the
-    anechoic tests of the 400-sound bank (seed 0 puts one of its five directions at its
-    front-back mirror) and the test suite's training time (three banks of 79 s each) seen to
-    first.
+    Why the line of sight (since 2026-12-04, session 21): of the paths through the body the
+    straight one from the source to the head arrives first, and the first wavefront gives a
+    sound its direction, so a source beside the cabin is heard from its own direction. Until
+    then a source played from the point inside the walls nearest to it, which brought one
+    2-6 m beside the cabin and 0.5-1 m ahead of the head in through the window next to it,
+    19-35 deg from straight ahead, where the line of sight gives 68-86 deg (its path that
+    way is 0.2-0.5 m, 0.7-1.5 ms, longer). A task sound is placed when it is scheduled
+    (the head's position then); the car horn, the coupling's emitter, follows the head. The
+    change moved ReverseAlarm's beepers on the left onto the front's mirror image from the
+    then policy's listening pose (45 deg right), so the policy changed with it: it now
+    listens 22 deg right and accepts a window of lateral angles
+    (:class:`policies.scripted.ScriptedReverseAlarm` has the measurements). Fast models
+    under this law with the old policy, seeds 1000-1099 (89 with no false release under the
+    old law): 87 with 2 false releases (test seeds 100-119: 17/20 with 2); 30 deg right 85
+    with 2; 25 deg right 78 with none; 20 deg right 54; 25 deg right without the mirror
+    image 14 (the alarm near the median plane is mostly placed behind). The 16-bin fast bank
+    of then with the lateral rule: 10 of 20 on the test seeds, 73 on 1000-1099: near the
+    median plane its lateral angles scatter, so the tests' bank became the jittered 32-bin
+    one (:data:`~acoustic_sim.auditory.ssdenet_profiles.FAST`).
     ParkingBrake has no outside sounds (100-119 unchanged).
 
     Parameters
@@ -151,7 +139,7 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
         dB SPL at 1 m from ``position``.
     """
     p = np.asarray(point_room, dtype=float)
-    inside = coupling.frame.nearest_inside(p, coupling.outside_margin_m if margin is None else margin)
+    inside = coupling.frame.entry_point(p, coupling.head_position, coupling.outside_margin_m if margin is None else margin)
     d = float(np.linalg.norm(p - inside))
     return inside, level_db - coupling.events.config.transmission_loss_db - 20.0 * math.log10(max(d, 1.0))
 

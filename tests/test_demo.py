@@ -95,17 +95,22 @@ def _record(outcome: str, steps: int, onset_step: int | None, release_step: int 
 
 
 def _say(trace, record):
-    return narrate(trace, record, threshold=0.5, front_deg=45.0, success_window_s=1.0, seed=3, profile="fast")
+    return narrate(trace, record, threshold=0.5, lateral_range_deg=(5.0, 36.0), success_window_s=1.0, seed=3,
+                   profile="fast")
+
+
+REGION = "the alarm's region: lateral angle +5 to +36 deg from the turned head"
 
 
 def test_narration_of_a_success_a_false_release_and_a_miss():
-    text, m = _say(_trace(70, alarm_from=5.0), _record("success", 70, 38, 60))
+    text, m = _say(_trace(70, alarm_from=20.0), _record("success", 70, 38, 60))
     lines = text.splitlines()
     assert lines[1] == "   0.61 s  the lever enters R and the car's reverse alarm starts (truly +0 deg, in front)"
-    assert lines[2].startswith("   0.64 s  recognized as a reverse alarm (p = 0.90), 0.03 s after it started, from +5 deg")
+    assert lines[2] == ("   0.64 s  recognized as a reverse alarm (p = 0.90), 0.03 s after it started, from +20 deg "
+                        f"azimuth, +0 deg elevation (in front; lateral +20 deg from the head, inside {REGION})")
     assert lines[3] == "   0.96 s  the left hand lets go of the lever (gear R), 0.35 s after the alarm started"
     assert lines[-1] == "  outcome at 1.12 s: success (reaction 0.35 s; a success lets go within 1.0 s)"
-    assert m["recognized_s"] == pytest.approx(40 / FRAME_RATE) and m["front_s"] == m["recognized_s"]
+    assert m["recognized_s"] == pytest.approx(40 / FRAME_RATE) and m["accepted_s"] == m["recognized_s"]
 
     # fooled by another vehicle's beeper behind: let go before the car's alarm
     text, m = _say(_trace(30, alarm_from=None, beeper=(10, 30, 178.0)), _record("early", 30, None, 30))
@@ -118,16 +123,16 @@ def test_narration_of_a_success_a_false_release_and_a_miss():
 
     # heard, but only from the side: never let go, pushed past R
     text, m = _say(_trace(90, alarm_from=-100.0), _record("past_reverse", 90, 38, None))
-    assert "from -100 deg azimuth, +0 deg elevation (on the right; outside the front region: azimuth +-45 deg)" in text
-    assert "51 frames heard it with a direction: median -100 deg, 0 of them from the front" in text
+    assert f"from -100 deg azimuth, +0 deg elevation (on the right; lateral -80 deg from the head, outside {REGION})" in text
+    assert "51 frames heard it with a direction: median -100 deg, 0 of them in the alarm's region" in text
     assert "the left hand never let go" in text and text.endswith("failure: pushed the lever past R")
-    assert m["front_s"] is None and m["release_s"] is None
+    assert m["accepted_s"] is None and m["release_s"] is None
 
 
 def test_narration_of_the_lever_waiting_for_quiet():
     """The policy's waits (``Trace.waiting``, filled from the policy by the demo's hook) are
     told as one line per run of waiting steps, with what it heard."""
-    tr = _trace(70, alarm_from=5.0)
+    tr = _trace(70, alarm_from=20.0)
     tr.waiting = [(None, ())] * 71
     tr.waiting[5:12] = [("masked", ("human_voice",))] * 5 + [("masked", ("car_horn", "human_voice"))] * 2
     tr.waiting[12:20] = [("settling", ())] * 8
@@ -135,7 +140,7 @@ def test_narration_of_the_lever_waiting_for_quiet():
     text, _ = _say(tr, _record("success", 70, 38, 60))
     lines = text.splitlines()
     assert lines[1] == ("   0.08 s  the lever waits for quiet (hearing car horn, human voice; after a reverse alarm "
-                        "not placed in front) until 0.32 s")
+                        "placed outside the alarm's region) until 0.32 s")
     assert sum("waits for quiet" in line for line in lines) == 1
     assert lines[2].startswith("   0.61 s  the lever enters R")
 
@@ -161,31 +166,26 @@ def test_demo_errors(tmp_path):
     assert not (tmp_path / "d").exists()  # refused before anything was written
 
 
-def test_narration_in_the_car_frame_with_the_mirror_accepted():
-    # The head turned 45 deg right; the alarm heard at +80 deg in the car's frame (its
-    # front-back mirror through the head's interaural axis is +10 deg: accepted with mirror).
-    tr = _trace(70, alarm_from=125.0)  # head frame: +125 deg = +80 deg in the car
-    tr.neck = [np.array([np.radians(-45.0), 0.0])] * len(tr.t)
-    text, m = narrate(tr, _record("success", 70, 38, 60), threshold=0.5, front_deg=20.0, success_window_s=1.0, seed=3,
-                      profile="fast", mirror=True)
-    assert ("from +80 deg azimuth, +0 deg elevation (on the left; its front-back mirror image, +10 deg, is inside the "
-            "front region: azimuth +-20 deg)") in text
-    assert "21 frames heard it with a direction: median +80 deg, 21 of them from the front or its mirror image" in text
-    assert m["front_s"] == m["recognized_s"]
-    # Without the mirror, the same estimate is outside the front region.
-    text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, front_deg=20.0, success_window_s=1.0,
-                      seed=3, profile="fast")
-    assert ("from +80 deg azimuth, +0 deg elevation (on the left; outside the front region: azimuth +-20 deg)" in text
-            and m["front_s"] is None)
-    # The policy's elevation bound: the same azimuth heard 40 deg up is outside, mirror or not.
+def test_narration_in_the_car_frame_at_the_mirror_image():
+    # The head turned 22 deg right; the alarm heard at +158 deg from the head (+136 deg in the
+    # car's frame, behind on the left): the front-back mirror image of +22 deg, the same
+    # lateral angle, which the ears cannot tell from the dashboard speaker: accepted.
+    tr = _trace(70, alarm_from=158.0)
+    tr.neck = [np.array([np.radians(-22.0), 0.0])] * len(tr.t)
+    text, m = narrate(tr, _record("success", 70, 38, 60), threshold=0.5, lateral_range_deg=(5.0, 36.0),
+                      success_window_s=1.0, seed=3, profile="fast")
+    assert f"from +136 deg azimuth, +0 deg elevation (behind on the left; lateral +22 deg from the head, inside {REGION})" in text
+    assert "21 frames heard it with a direction: median +136 deg, 21 of them in the alarm's region" in text
+    assert m["accepted_s"] == m["recognized_s"]
+    # The policy's elevation bound: the same direction heard 40 deg up is outside.
     up = np.radians(40.0)
     for d in tr.direction:
         on = np.linalg.norm(d, axis=1) > 0
         d[on] *= np.cos(up)
         d[on, 2] = np.sin(up)
-    text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, front_deg=20.0, success_window_s=1.0,
-                      seed=3, profile="fast", mirror=True, elevation_deg=(-90.0, 20.0))
-    assert ("from +80 deg azimuth, +40 deg elevation (on the left; its front-back mirror image, +10 deg, is outside the "
-            "front region: azimuth +-20 deg, elevation at most +20 deg)") in text
-    assert "31 frames heard it with a direction: median +80 deg, 0 of them from the front or its mirror image" in text
-    assert m["front_s"] is None
+    text, m = narrate(tr, _record("past_reverse", 70, 38, None), threshold=0.5, lateral_range_deg=(5.0, 36.0),
+                      success_window_s=1.0, seed=3, profile="fast", elevation_deg=(-90.0, 20.0))
+    assert ("from +136 deg azimuth, +40 deg elevation (behind on the left; lateral +17 deg from the head, outside the "
+            "alarm's region: lateral angle +5 to +36 deg from the turned head, elevation at most +20 deg)") in text
+    assert "31 frames heard it with a direction: median +136 deg, 0 of them in the alarm's region" in text
+    assert m["accepted_s"] is None

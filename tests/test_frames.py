@@ -15,7 +15,7 @@ from acoustic_sim.frames import (
     frame_end_sample,
     head_to_body_azimuth,
     head_to_body_elevation,
-    in_front_sector,
+    lateral_deg,
     pa_to_db_spl,
     rotation_zyx,
     sph_to_vec,
@@ -116,18 +116,13 @@ def test_head_to_body_angles_match_the_rotation():
             head_to_body_elevation(bad)
 
 
-def test_in_front_sector():
-    """Azimuth within the half-width of the body's front and elevation within the bounds, of
-    the direction or (mirror) its front-back mirror image, the head turned 45 deg right."""
-    yaw = math.radians(-45.0)
-
-    def inside(az, el, **kw):
-        return in_front_sector(sph_to_vec(az, el), yaw, half_width_deg=20.0, elevation_deg=(-90.0, 20.0), **kw)
-
-    assert inside(45.0, -10.0) and inside(60.0, 0.0) and not inside(70.0, 0.0)  # car azimuth 0, +15, +25 deg
-    assert not inside(45.0, 30.0) and inside(45.0, -80.0)  # above the bound; no lower bound
-    assert not inside(135.0, -10.0) and inside(135.0, -10.0, mirror=True)  # car +90 deg; its mirror image is in front
-    assert in_front_sector(sph_to_vec(-30.0, 0.0), half_width_deg=20.0, heading=math.radians(30.0))  # the body turned
+def test_lateral_deg_is_the_angle_to_the_median_plane():
+    """The same on the whole cone of confusion (front, back, up), + left; zero is finite."""
+    for az, el in ((30.0, 0.0), (150.0, 0.0), (90.0, 60.0)):
+        v = sph_to_vec(az, el)
+        assert lateral_deg(v) == pytest.approx(math.degrees(math.asin(math.cos(math.radians(el)) * math.sin(math.radians(az)))))
+    assert lateral_deg(sph_to_vec(30.0, 0.0)) == pytest.approx(lateral_deg(sph_to_vec(150.0, 0.0))) == pytest.approx(30.0)
+    assert lateral_deg([0.0, -2.0, 0.0]) == pytest.approx(-90.0) and lateral_deg([0.0, 0.0, 0.0]) == 0.0
 
 
 def test_frame_clock_exact_for_an_hour():

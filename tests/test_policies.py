@@ -3,17 +3,18 @@
 ``oracle`` (ground truth) must meet every target: that checks the tasks, their outcomes and
 their timing. ``scripted`` (the paper's behaviours, from the percepts) and ``blind`` (classes
 without directions) depend on the auditory pipeline: a probe first checks that the ``fast``
-models detect the task sounds at all (a failure if not). ParkingBrake's targets are marked ``xfail``
-(non-strict) with the measured reason (see the issue 5 report), so they show as XPASS once
-the pipeline delivers them. ReverseAlarm's too, since the cabin tasks take three windows at
-a rising onset (:attr:`tasks.cabin.CabinLeverTask.onset_windows`): with the paper models
-that brought ReverseAlarm from 74/90 to 80/90, with the fast ones over these 20 episodes
-from 0.90 to 0.80 and one false release (with the earlier fast MelCNN; the reason below
-gives the current count). Before, ReverseAlarm
-met its targets with the fast models once the validity rule dropped a tone's sidelobes
-(:data:`acoustic_sim.auditory.ssdenet.LEAKAGE`; 0.85 -> 0.90 success, 0.05 -> 0 false
-releases). An xfail cannot fail, so the same episodes are also held to a floor below today's
-fast-model level (:data:`FLOOR_SUCCESS`, :data:`FLOOR_FALSE_RELEASES`), which does.
+models detect the task sounds at all (a failure if not). The scripted policies are held to
+the issue's targets (success at least 0.9, no false release, the median reactions) over
+these 20 episodes. Until 2026-12-04 (session 21) the cabin targets were expected failures
+with a floor below: the 16-bin fast SSDENet bank gave ReverseAlarm 18, 15 and 14 of 20 with
+one false release each for training seeds 0, 1 and 2. Since the line-of-sight law for
+outside sounds, the lateral rule of :class:`policies.scripted.ScriptedReverseAlarm` and the
+jittered 32-bin fast bank (:data:`acoustic_sim.auditory.ssdenet_profiles.FAST`, whose
+docstring has the measurements), the three training seeds give ReverseAlarm 19, 20 and 18
+and ParkingBrake 19, 18 and 19 of 20, none with a false release. CI trains its own models
+on another CPU, which is another draw: a fast bank lets go falsely in about 0-4 % of cabin
+episodes, so a failure here is worth a look at the episode (``acoustic-sim run TASK
+--policy scripted --seed S --episodes 1 --profile fast``) before the models are blamed.
 """
 
 import json
@@ -31,26 +32,6 @@ from policies import POLICIES, make_policy
 
 EPISODES = 20
 BLIND_EPISODES = 12  # enough to show that the distractors bite
-PARKING_BRAKE = (
-    "auditory pipeline: since the policy waits for quiet (policies.scripted.ScriptedReverseAlarm) the fast models "
-    "reach 0.90 success and no false release over these 20 episodes (104 and 109 late), at the target's edge, so "
-    "another draw of the fast models (CI trains its own) may miss it. Over 100 episodes: fast models 0.89 with 1 "
-    "false release on 1000-1099 (0.62 with 8 before waiting for quiet); paper models 0.94 with none on the "
-    "held-out seeds 3000-3099 (results/tasks), 0.98, 0.94 and 0.96 with none on 100-199, 200-299 and 2000-2099 "
-    "(FLOOR_SUCCESS)"
-)
-
-REVERSE_ALARM = (
-    "auditory pipeline: over these 20 episodes the fast models reach 0.90 success and 0.05 false releases in "
-    "ReverseAlarm, not 0.9 with none: seed 100's false release is another vehicle's beeper behind on the left "
-    "(145 deg), placed at 100 deg, whose front-back mirror image from the turned head is in front, a direction "
-    "the scripted policy accepts because the ears cannot tell it from the alarm; 117 never lets go (no beep placed "
-    "in front soon enough after the lever stopped). Over 100 episodes: fast models 0.89 with none on 1000-1099; "
-    "paper models 0.96 with none on the held-out seeds 3000-3099 (results/tasks), 0.99 and 0.96 with none on "
-    "100-199 and 200-299, 0.96 with 3 and 0.91 with 1 on 1000-1099 and 2000-2099 (FLOOR_SUCCESS)"
-)
-
-
 @pytest.fixture(scope="module")
 def envs():
     made = {t: runner.make_env(t, profile="fast") for t in runner.TASK_NAMES}
@@ -137,48 +118,15 @@ def test_scripted_lets_go_falsely_less_often_than_blind(envs, hearing, task):
     assert scripted["false_release_rate"] < blind["false_release_rate"], (scripted, blind)
 
 
-@pytest.mark.xfail(reason=REVERSE_ALARM, strict=False)
-def test_scripted_reverse_alarm_targets(envs, hearing):
-    need(hearing, "reverse_alarm")
-    summary, _ = episodes(envs, "reverse-alarm", "scripted")
-    assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, summary
-    assert summary["median_reaction_s"] <= 0.5, summary
-
-
-@pytest.mark.xfail(reason=PARKING_BRAKE, strict=False)
-def test_scripted_parking_brake_targets(envs, hearing):
-    need(hearing, "ratchet")
-    summary, _ = episodes(envs, "parking-brake", "scripted")
-    assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, summary
-    assert summary["median_reaction_s"] <= 0.3, summary
-
-
-FLOOR_SUCCESS = 0.65
-FLOOR_FALSE_RELEASES = 0.15
-"""The fast models' floor in the cabin tasks over these 20 episodes. The fast SSDENet's
-training seed moves them (this machine, same recipe, since the policies wait for quiet;
-seeds 0 / 1 / 2: ReverseAlarm 18 / 15 / 15 of 20 with one false release each,
-ParkingBrake 18 / 19 / 19 with none; median reactions 0.09 s and 0.05 s with each; before
-the waiting, 18 / 12 / 15 and 17 / 12 / 16 with up to 3 false releases, and the floor was
-0.55 and 0.20), and CI trains its own models on another CPU, which is another draw.
-``blind`` on the same episodes: 10 and 5 of 20, false releases 0.50 and 0.75. The floor
-sat two episodes below the worst seed and well above ``blind``, and above what the
-policies did before waiting for quiet with the worst seed (0.60). With ReverseAlarm's
-elevation bound (session 19): ReverseAlarm 18 / 15 / 14 of 20 with one false release each,
-ParkingBrake unchanged (the bound is ReverseAlarm's), so seed 2 is now one episode above
-the floor."""
-
-
 @pytest.mark.parametrize("task, label, reaction_s", [("reverse-alarm", "reverse_alarm", 0.5),
                                                       ("parking-brake", "ratchet", 0.3)])
-def test_scripted_stays_above_the_fast_models_floor(envs, hearing, task, label, reaction_s):
-    """What the non-strict xfail targets above cannot do: fail when the behaviour regresses
-    below what the fast models deliver today (same episodes, no extra run), and hold the
-    issue's median reaction (0.5 s for the alarm, 0.3 s for the ratchet)."""
+def test_scripted_cabin_targets(envs, hearing, task, label, reaction_s):
+    """Success at least 0.9, no false release, and the issue's median reaction (0.5 s for the
+    alarm, 0.3 s for the ratchet; the paper's robot took 2.3 s and 0.2 s)."""
     need(hearing, label)
-    summary, _ = episodes(envs, task, "scripted")
-    assert summary["success_rate"] >= FLOOR_SUCCESS, summary
-    assert summary["false_release_rate"] <= FLOOR_FALSE_RELEASES, summary
+    summary, records = episodes(envs, task, "scripted")
+    failed = [(r["seed"], r["outcome"]) for r in records if not r["success"]]  # the episodes to look at
+    assert summary["success_rate"] >= 0.9 and summary["false_release_rate"] == 0.0, (summary, failed)
     assert summary["median_reaction_s"] <= reaction_s, summary
 
 
@@ -255,10 +203,11 @@ def test_policy_and_runner_errors(envs):
     assert set(POLICIES) == set(runner.POLICY_NAMES)
 
 
-def test_reverse_alarm_listening_pose_and_front_back_mirror(envs):
-    """The scripted ReverseAlarm policy turns the head 45 deg right and accepts the front
-    sector (not above 20 deg) or its front-back mirror image through the head's interaural
-    axis (the ears' cone of confusion), nothing else."""
+def test_reverse_alarm_listening_pose_and_lateral_rule(envs):
+    """The scripted ReverseAlarm policy turns the head 22 deg right and accepts a lateral
+    angle of 5-36 deg to the left of the turned head (the dashboard speaker, 22 deg, and its
+    front-back mirror image behind, which the ears cannot tell apart), not above 20 deg,
+    nothing else."""
     import math
 
     from acoustic_sim.frames import sph_to_vec
@@ -270,21 +219,21 @@ def test_reverse_alarm_listening_pose_and_front_back_mirror(envs):
     pol.reset(obs, info)
     for _ in range(40):  # the head settles in the listening pose (the lever still waits or creeps)
         obs, *_, info = env.step(pol.act(obs, info))
+    assert pol.head_yaw_deg == -22.0 and pol.lateral_range_deg == (5.0, 36.0)
     assert math.degrees(float(obs["joint_pos"][0])) == pytest.approx(pol.head_yaw_deg, abs=3.0)
     pose = {"joint_pos": np.radians([pol.head_yaw_deg, 0.0])}
 
     def accepts(head_az_deg, el_deg=0.0):
         return pol.accept(sph_to_vec(head_az_deg, el_deg), pose)
 
-    assert accepts(45.0) and accepts(45.0 + 15.0) and accepts(45.0 - 15.0)  # in front of the car
-    assert accepts(135.0)  # its mirror image (car +90 deg): the ears cannot tell them apart
-    assert not accepts(-135.0)  # behind the car (mirror: car -90 deg)
-    assert not accepts(-45.0) and not accepts(0.0) and not accepts(90.0)  # car -90, -45 and +45 deg
-    # The sector's elevations: the dashboard's beeps, placed 30-50 deg down, count; 30 deg or
-    # more up (above the head, not the dashboard) does not, nor its mirror image.
+    assert accepts(22.0) and accepts(22.0 + 12.0) and accepts(22.0 - 15.0)  # in front of the car: 0, +12, -15 deg
+    assert accepts(158.0) and accepts(180.0 - 34.0)  # the mirror images behind: the same lateral angles
+    assert not accepts(-22.0) and not accepts(0.0) and not accepts(60.0) and not accepts(90.0) and not accepts(-158.0)
+    # The elevations: the dashboard's beeps, placed 30-50 deg down, count; 30 deg or more up
+    # (above the head, not the dashboard) does not, nor its mirror image.
     assert pol.elevation_deg == (-90.0, 20.0)
-    assert accepts(45.0, -30.0) and accepts(135.0, -30.0) and accepts(45.0, -50.0) and accepts(45.0, 15.0)
-    assert not accepts(45.0, 30.0) and not accepts(135.0, 40.0) and not accepts(45.0, 60.0)
+    assert accepts(25.0, -30.0) and accepts(155.0, -30.0) and accepts(30.0, -50.0) and accepts(22.0, 15.0)
+    assert not accepts(22.0, 30.0) and not accepts(158.0, 40.0) and not accepts(40.0, 60.0)
 
 
 def test_parking_brake_hears_the_right_by_lateral_angle(envs):

@@ -328,8 +328,10 @@ def test_sounds_outside_the_room_play_through_the_wall():
     head = c.head_position
     s = sc.schedule_sound("car", "reverse_alarm", np.ones(100), [-3.0, head[1], 1.0], c.time_s + 0.5, 100.0, outside=True)
     margin, loss = c.outside_margin_m, c.events.config.transmission_loss_db
-    np.testing.assert_allclose(s.position, [margin, head[1], 1.0])
-    assert s.level_db == pytest.approx(100.0 - loss - 20 * np.log10(3.0 + margin))
+    entry = head + (margin - head[0]) / (-3.0 - head[0]) * (np.array([-3.0, head[1], 1.0]) - head)
+    np.testing.assert_allclose(s.position, entry)  # where the straight path to the head enters
+    assert s.position[0] == pytest.approx(margin)
+    assert s.level_db == pytest.approx(100.0 - loss - 20 * np.log10(np.linalg.norm(np.array([-3.0, head[1], 1.0]) - entry)))
 
 
 def test_schedule_sound_errors():

@@ -108,12 +108,31 @@ def test_room_frame_matches_the_scene(name):
     assert np.allclose(frame.to_world(frame.to_room(p)), p)
 
 
+def test_entry_point_is_where_the_straight_path_to_the_listener_enters():
+    frame = RoomFrame.from_box([2.0, 1.0, 1.0], np.eye(3), [2.0, 1.0, 1.0])  # room [0, 4] x [0, 2] x [0, 2]
+    head = np.array([3.0, 0.5, 1.0])
+    # 3 m beside the room's y = 0 wall and 1 m ahead of the head: the straight path reaches
+    # y = 0.1 (the margin) after 0.4 of its 3.5 m across, not at the point nearest the source.
+    source = np.array([4.0, -3.0, 1.0])
+    entry = frame.entry_point(source, head, 0.1)
+    assert entry[1] == pytest.approx(0.1)
+    d, e = source - head, entry - head
+    assert np.allclose(np.cross(d, e), 0.0) and np.dot(d, e) > 0  # on the segment, toward the source
+    assert np.allclose(entry, head + (0.4 / 3.5) * d)
+    assert not np.allclose(entry, [3.9, 0.1, 1.0])  # the point nearest the source, the law until 2026-12-04
+    # Through a corner region the first wall reached decides; a point inside is its own entry.
+    assert np.allclose(frame.entry_point([10.0, 1.0, 1.0], [2.0, 1.0, 1.0], 0.1), [3.9, 1.0, 1.0])
+    assert np.allclose(frame.entry_point([1.0, 1.5, 0.5], head, 0.1), [1.0, 1.5, 0.5])
+    # A listener against a wall is first clipped into the shrunk box.
+    assert np.allclose(frame.entry_point([2.0, -5.0, 1.0], [2.0, 0.0, 1.0], 0.1), [2.0, 0.1, 1.0])
+
+
 def test_room_frame_rotated_box():
     frame = RoomFrame.from_box([1.0, 2.0, 1.0], rotation_zyx(90.0), [2.0, 1.0, 1.0])
     assert np.allclose(frame.to_room([1.0, 2.0, 1.0]), [2.0, 1.0, 1.0])  # the centre
     assert np.allclose(frame.to_room([1.0, 3.0, 1.0]), [3.0, 1.0, 1.0])  # world +y is the room's +x
     assert np.allclose(frame.rotation_to_room(rotation_zyx(90.0)), np.eye(3))
-    assert np.allclose(frame.nearest_inside([9.0, -1.0, 1.0], 0.1), [3.9, 0.1, 1.0])
+    assert np.allclose(frame.entry_point([9.0, 1.0, 1.0], [2.0, 1.0, 1.0], 0.1), [3.9, 1.0, 1.0])
     with pytest.raises(ConfigError, match="positive half-sizes"):
         RoomFrame.from_box([0, 0, 0], np.eye(3), [1.0, 0.0, 1.0])
 
@@ -196,7 +215,9 @@ def test_outside_horn_plays_inside_the_windscreen(kemar):
     assert horn[0] > c.frame.dimensions[0]  # the grille is outside the cabin's air volume
     inside = c.emitter_position("horn")
     assert inside[0] == pytest.approx(c.frame.dimensions[0] - c.outside_margin_m)
-    assert np.allclose(inside[1:], horn[1:])
+    # On the straight line from the grille to the head: heard from the horn's own direction.
+    to_horn, to_inside = horn - c.head_position, inside - c.head_position
+    assert np.allclose(to_inside / np.linalg.norm(to_inside), to_horn / np.linalg.norm(to_horn), atol=1e-9)
     loud = np.random.default_rng(0).standard_normal(44100)  # unit RMS
     c.events.schedule_horn(0.0, signal=loud)
     c.step()

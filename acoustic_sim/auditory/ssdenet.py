@@ -22,8 +22,9 @@ Training
 
 Profiles (:data:`PROFILES`)
     :mod:`acoustic_sim.auditory.ssdenet_profiles` (re-exported here): :class:`SSDENetProfile`
-    and the ``paper`` / ``fast`` entries, the paper's network size with a measured subset of
-    bins, and a small one for tests.
+    and the ``paper`` / ``fast`` / ``quick`` entries: the paper's network size on a measured
+    subset of bins, a small one for tests and the tasks' regression tests, and a smaller one
+    for the quick paper evaluation.
 
 Checkpoints
     Trained banks are cached per (HRTF ident, grid ident, profile) by
@@ -61,6 +62,7 @@ from acoustic_sim.auditory.ssdenet_profiles import (  # noqa: F401 (the profiles
     N_FEATURES,
     PAPER,
     PROFILES,
+    QUICK,
     SSDENetProfile,
     erb_number,
     erb_spaced_bins,

@@ -24,11 +24,16 @@ sample, several sounds of one emitter overlap, and adding a sound never costs a 
 (which takes tens of milliseconds to set up). The ring holds pressure at 1 m in pascal (the
 source's level is 1 Pa for a unit sample), so each sound carries its own level.
 
-Outside emitters (the car horn) play from the point of the room nearest to their site,
-``outside_margin_m`` inside the walls (just inside the windscreen), at their level minus
-the body's transmission loss and minus the spreading from the site to that point,
-``20 log10(max(d, 1 m) / 1 m)`` dB: the windscreen re-radiates what reaches it, less what
-the body stops.
+Outside emitters (the car horn) play from where the straight line from their site to the
+head enters the room, ``outside_margin_m`` inside the walls (just inside the windscreen;
+:meth:`RoomFrame.entry_point`), at their level minus the body's transmission loss and minus
+the spreading from the site to that point, ``20 log10(max(d, 1 m) / 1 m)`` dB: the body
+re-radiates what reaches it, less what it stops, and of all the paths through it the
+straight one arrives first, so the first wavefront, from which a listener takes a sound's
+direction, comes from the site's own direction. (Until 2026-12-04 they played from the
+point of the room nearest to the site: a source 2-6 m beside the cabin and 0.5-1 m ahead of
+the head then came in through the window next to the head, 19-35 deg from straight ahead
+instead of 68-86 deg, though its path that way is 0.2-0.5 m, 0.7-1.5 ms, longer.)
 """
 
 from __future__ import annotations
@@ -102,9 +107,22 @@ class RoomFrame:
         """A world orientation (3x3, frame to world) as frame to room."""
         return self.rotation.T @ np.asarray(rotation, dtype=float)
 
-    def nearest_inside(self, point_room, margin: float) -> np.ndarray:
-        """The point of the room at least ``margin`` (m) inside its walls nearest to ``point_room``."""
-        return np.clip(np.asarray(point_room, dtype=float), margin, self.dimensions - margin)
+    def entry_point(self, point_room, listener_room, margin: float) -> np.ndarray:
+        """Where the straight path from ``point_room`` (outside) to ``listener_room`` enters
+        the room, taken ``margin`` (m) inside its walls: the box shrunk by ``margin`` cut by
+        the segment from the listener (clipped into that box) to the point. A point inside
+        that box is its own entry point."""
+        p = np.asarray(point_room, dtype=float)
+        lo, hi = margin, self.dimensions - margin
+        h = np.clip(np.asarray(listener_room, dtype=float), lo, hi)
+        d = p - h
+        t = 1.0
+        for k in range(3):
+            if d[k] > 0.0:
+                t = min(t, (hi[k] - h[k]) / d[k])
+            elif d[k] < 0.0:
+                t = min(t, (lo - h[k]) / d[k])
+        return h + max(t, 0.0) * d
 
 
 @dataclasses.dataclass
@@ -462,12 +480,13 @@ class Coupling:
 
     def _anchor(self, e: _EmitterState) -> tuple[np.ndarray, float]:
         """Room-frame position (m) an emitter plays from and its level change (dB): for
-        outside emitters, the nearest point inside and minus the loss and spreading to it."""
+        outside emitters, where the straight path to the head enters the room, and minus the
+        loss and spreading to it."""
         f = self.frame
         p = f.to_room(self.view.site_position(e.anchor))
         if not e.outside:
             return p, 0.0
-        inside = f.nearest_inside(p, self.outside_margin_m)
+        inside = f.entry_point(p, self.head_position, self.outside_margin_m)
         d = float(np.linalg.norm(p - inside))
         return inside, -self.events.config.transmission_loss_db - 20.0 * np.log10(max(d, 1.0))
 
