@@ -167,15 +167,15 @@ def build_parser() -> argparse.ArgumentParser:
         "Prints what happened: when the alarm started, when the robot recognized it and from which direction "
         "(from the percepts in its observations), what else it heard, when the hand let go, and the outcome "
         "(success, or the failure and why). Writes OUT/demo.png (left and right mel spectrograms, class "
-        "probabilities and the alarm's estimated azimuth over time, with the events marked), OUT/demo.rrd (a rerun "
-        "recording: acoustic-sim play OUT/demo.rrd), OUT/demo.wav (what the ears heard) and OUT/demo.json. The "
-        "first run trains the chosen profile's models and caches them (about a minute for fast on a CPU, with a "
+        "probabilities and the alarm's estimated lateral angle from the head over time, with the events marked), "
+        "OUT/demo.rrd (a rerun recording: acoustic-sim play OUT/demo.rrd), OUT/demo.wav (what the ears heard) and OUT/demo.json. The "
+        "first run trains the chosen profile's models and caches them (about three minutes for fast on a CPU, with a "
         "progress bar); later runs take seconds.",
     )
     d.add_argument("--out", type=Path, default=Path("runs"), help="output folder (default runs/)")
     d.add_argument("--seed", type=int, default=0, help="episode seed, >= 0 (default 0): same seed, same episode")
     d.add_argument("--profile", choices=("fast", "paper"), default="fast",
-                   help="auditory models: fast (default; small networks, trained in about a minute on a CPU) or paper "
+                   help="auditory models: fast (default; small networks, trained in about three minutes on a CPU) or paper "
                    "(the paper's networks; several minutes of training the first time)")
     d.set_defaults(func=cmd_demo)
 

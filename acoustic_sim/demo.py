@@ -428,7 +428,7 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     seed : int
         Episode seed, >= 0: same seed, same episode.
     profile : str
-        Auditory models: ``fast`` (small; trained in about a minute on a CPU the first time,
+        Auditory models: ``fast`` (small; trained in about three minutes on a CPU the first time,
         then cached) or ``paper`` (the paper's networks; several minutes to train the first time).
     progress : bool
         Show the models' training progress bars (the episode itself takes seconds).
