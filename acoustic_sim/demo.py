@@ -233,7 +233,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: 
         masked = sorted({c.replace("_", " ") for w in trace.waiting[a:b + 1] for c in (w[1] if w[0] == "masked" else ())})
         why = [f"hearing {', '.join(masked)}"] if masked else []
         if any(w[0] == "settling" for w in trace.waiting[a:b + 1]):
-            why.append(f"after a {LABEL.replace('_', ' ')} placed outside the alarm's region")
+            why.append(f"after hearing a {LABEL.replace('_', ' ')}")
         timeline.append((t[a], 1, f"the lever waits for quiet ({'; '.join(why)}) until {t[min(b + 1, len(t) - 1)]:.2f} s"))
     tail = []
     if onset is None:
@@ -301,7 +301,8 @@ def _truth(trace: Trace, a: int, b: int) -> str:
     return f" (it was {name}, truly {m:+.0f} deg, {side_words(m)})"
 
 
-def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral_range_deg: tuple, title: str) -> None:
+def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral_range_deg: tuple, title: str,
+           elevation_deg: tuple = (-90.0, 90.0)) -> None:
     """``demo.png``: mel spectrograms, the class probabilities and the alarm's estimated
     lateral angle from the head (the angle the policy's rule reads).
 
@@ -318,6 +319,9 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
         The lateral angles (deg, + left, from the turned head) the policy accepts as the
         alarm's (shaded).
     title : str
+    elevation_deg : tuple of float
+        The region's elevations (deg, car frame, the policy's): estimates outside them are
+        drawn as crosses (rejected whatever their lateral angle).
     """
     import matplotlib
 
@@ -368,9 +372,15 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
     d = np.array([x[k] for x in trace.direction])
     has = np.linalg.norm(d, axis=1) > 0.5
     lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
+    el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan
+                   for v, n, h in zip(d, trace.necks(), has)])
+    off = np.array([h and not elevation_deg[0] <= e <= elevation_deg[1] for h, e in zip(has, el)], dtype=bool)
     on = has & (p >= threshold)
-    axes[3].scatter(t[has & ~on], lat[has & ~on], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
-    axes[3].scatter(t[on], lat[on], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
+    axes[3].scatter(t[has & ~on & ~off], lat[has & ~on & ~off], s=6, color="0.6", label=f"estimate, p < {threshold:g}")
+    axes[3].scatter(t[on & ~off], lat[on & ~off], s=10, color="tab:red", label=f"estimate, p >= {threshold:g}")
+    if np.any(off):
+        axes[3].scatter(t[off], lat[off], s=14, marker="x", lw=0.8, color=np.where(on[off], "tab:red", "0.6"),
+                        label=f"estimate outside the region's elevations ({elevation_deg[0]:+g} to {elevation_deg[1]:+g} deg)")
     for src, style in _true_tracks(trace):
         ys = np.array([x.get(src, np.nan) for x in trace.true_lateral]) if trace.true_lateral else np.full(t.size, np.nan)
         axes[3].plot(t, ys, **style)
@@ -477,12 +487,14 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
         recorder.close()
     threshold = float(policy.threshold)
     lateral = tuple(float(x) for x in policy.lateral_range_deg)
+    elevation = tuple(float(x) for x in policy.elevation_deg)
     text, moments = narrate(trace, record, threshold=threshold, lateral_range_deg=lateral,
                             success_window_s=float(env.success_window_s), seed=int(seed), profile=profile,
-                            elevation_deg=tuple(float(x) for x in getattr(policy, "elevation_deg", (-90.0, 90.0))))
+                            elevation_deg=elevation)
     title = (f"ReverseAlarm, scripted policy, seed {seed}, {profile} models: "
              f"{record['outcome'].replace('_', ' ')}")
-    figure(trace, moments, out / "demo.png", threshold=threshold, lateral_range_deg=lateral, title=title)
+    figure(trace, moments, out / "demo.png", threshold=threshold, lateral_range_deg=lateral, title=title,
+           elevation_deg=elevation)
     import soundfile as sf
 
     audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)

@@ -139,8 +139,8 @@ def test_narration_of_the_lever_waiting_for_quiet():
     tr.waiting[41:44] = [("listening", ())] * 3  # listening to the alarm is not a wait for quiet
     text, _ = _say(tr, _record("success", 70, 38, 60))
     lines = text.splitlines()
-    assert lines[1] == ("   0.08 s  the lever waits for quiet (hearing car horn, human voice; after a reverse alarm "
-                        "placed outside the alarm's region) until 0.32 s")
+    assert lines[1] == ("   0.08 s  the lever waits for quiet (hearing car horn, human voice; after hearing a reverse "
+                        "alarm) until 0.32 s")
     assert sum("waits for quiet" in line for line in lines) == 1
     assert lines[2].startswith("   0.61 s  the lever enters R")
 
