@@ -79,7 +79,7 @@ def add_parsers(sub) -> None:
     )
     ep.add_argument("--out", type=Path, required=True, help="output folder")
     ep.add_argument("--hrtf", default="musashi", help=f"the robot's ears (default musashi): {HRTF_HELP}")
-    ep.add_argument("--quick", action="store_true", help="fewer directions and sounds, small models (about 3 minutes; for tests)")
+    ep.add_argument("--quick", action="store_true", help="fewer directions and sounds, small models (under a minute once the small MelCNN is cached; for tests)")
     ep.add_argument("--seed", type=int, default=0, help="random seed")
     ep.set_defaults(func=cmd_eval_paper)
     et = esub.add_parser(
