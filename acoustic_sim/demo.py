@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, lateral_deg
+from acoustic_sim.frames import (FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, in_lateral_region,
+                                 lateral_deg)
 
 TASK = "reverse-alarm"
 LABEL = "reverse_alarm"
@@ -155,6 +156,22 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(idx[::2], idx[1::2])]
 
 
+def _alarm_estimates(trace: Trace) -> tuple[np.ndarray, ...]:
+    """Per step: the reverse alarm's probability, its estimated direction (head frame),
+    whether it has one, and that estimate's lateral angle from the head and elevation in the
+    car's frame (deg; NaN without an estimate)."""
+    from acoustic_sim.acoustics.sounds import SOUND_CLASSES
+
+    k = SOUND_CLASSES.index(LABEL)
+    p = np.array([x[k] for x in trace.prob])
+    d = np.array([x[k] for x in trace.direction])
+    has = np.linalg.norm(d, axis=1) > 0.5
+    lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
+    el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan
+                   for v, n, h in zip(d, trace.necks(), has)])
+    return p, d, has, lat, el
+
+
 def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: tuple, success_window_s: float, seed: int,
             profile: str, elevation_deg: tuple = (-90.0, 90.0)) -> tuple[str, dict]:
     """The episode in words, in time order, and the moments it names (for ``demo.json``).
@@ -190,21 +207,17 @@ def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: 
         ``release_s`` (seconds since the episode's start, None when it did not happen) and
         ``outcome``.
     """
-    from acoustic_sim.acoustics.sounds import SOUND_CLASSES
     from acoustic_sim.viz.episode import outcome_words
 
-    k = SOUND_CLASSES.index(LABEL)
     t = np.asarray(trace.t)
-    p = np.array([x[k] for x in trace.prob])
-    d = np.array([x[k] for x in trace.direction])
-    has = np.linalg.norm(d, axis=1) > 0.5
+    p, d, has, lat, el = _alarm_estimates(trace)
     heard = (p >= threshold) & has
     neck = trace.necks()
     az = np.array([car_azimuth_deg(v, n) if h else np.nan for v, n, h in zip(d, neck, has)])
-    lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
-    el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan for v, n, h in zip(d, neck, has)])
+    accepted = np.array([h and in_lateral_region(v, float(n[1]), lateral_range_deg=lateral_range_deg,
+                                                 elevation_deg=elevation_deg)
+                         for v, n, h in zip(d, neck, has)], dtype=bool)
     (llo, lhi), (lo, hi) = lateral_range_deg, elevation_deg
-    accepted = np.array([h and llo <= x <= lhi and lo <= e <= hi for h, x, e in zip(has, lat, el)], dtype=bool)
     bounds = [f"lateral angle {llo:+.0f} to {lhi:+.0f} deg from the turned head"]
     if lo > -90.0:
         bounds.append(f"elevation at least {lo:+.0f} deg")
@@ -353,7 +366,7 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
         ax.set_ylabel(f"{name}\nfrequency (kHz)")
     if image is not None:
         fig.colorbar(image, ax=axes[:2], label="mel band power (dB re loudest)", shrink=0.8, fraction=0.03, pad=0.01)
-    p = np.array([x[k] for x in trace.prob])
+    p, _, has, lat, el = _alarm_estimates(trace)
     axes[2].plot(t, p, color="tab:red", lw=1.5, label="reverse alarm")
     for j, c in enumerate(SOUND_CLASSES):
         if j != k:
@@ -369,11 +382,6 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
     lo, hi = lateral_range_deg
     axes[3].axhspan(lo, hi, color="tab:green", alpha=0.1, lw=0,
                     label=f"alarm's region ({lo:+g} to {hi:+g} deg: in front, or its mirror behind)")
-    d = np.array([x[k] for x in trace.direction])
-    has = np.linalg.norm(d, axis=1) > 0.5
-    lat = np.array([lateral_deg(v) if h else np.nan for v, h in zip(d, has)])
-    el = np.array([math.degrees(head_to_body_elevation(v, float(n[1]))) if h else np.nan
-                   for v, n, h in zip(d, trace.necks(), has)])
     off = np.array([h and not elevation_deg[0] <= e <= elevation_deg[1] for h, e in zip(has, el)], dtype=bool)
     on = has & (p >= threshold)
     axes[3].scatter(t[has & ~on & ~off], lat[has & ~on & ~off], s=6, color="0.6", label=f"estimate, p < {threshold:g}")

@@ -155,6 +155,20 @@ def lateral_deg(v_head) -> float:
     return math.degrees(math.asin(max(-1.0, min(1.0, y / max(n, 1e-12)))))
 
 
+def in_lateral_region(v_head, pitch: float = 0.0, *, lateral_range_deg: tuple,
+                      elevation_deg: tuple = (-90.0, 90.0)) -> bool:
+    """Whether a head-frame direction has a lateral angle (:func:`lateral_deg`) within
+    ``lateral_range_deg`` and an elevation in the body's frame (the head pitched by ``pitch``,
+    rad, + nose down; :func:`head_to_body_elevation`) within ``elevation_deg`` (lowest,
+    highest; deg). The scripted ReverseAlarm policy's test of "the alarm's region" (the
+    dashboard speaker and its front-back mirror image), and the demo's narration of it.
+    """
+    lo, hi = lateral_range_deg
+    if not lo <= lateral_deg(v_head) <= hi:
+        return False
+    return elevation_deg[0] <= math.degrees(head_to_body_elevation(v_head, pitch)) <= elevation_deg[1]
+
+
 def world_to_head(points_world, head_position, head_rotation) -> np.ndarray:
     """Express world points (..., 3) in the head frame given the head pose.
 

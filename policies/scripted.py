@@ -33,7 +33,7 @@ from collections import deque
 
 import numpy as np
 
-from acoustic_sim.frames import head_to_body_azimuth, head_to_body_elevation, lateral_deg
+from acoustic_sim.frames import head_to_body_azimuth, in_lateral_region, lateral_deg
 from tasks.base import CLASSES, CONTROL_DT, lever_arm_angles
 
 
@@ -367,12 +367,9 @@ class ScriptedReverseAlarm(LeverPolicy):
         """The alarm's region: the estimate's lateral angle from the turned head (its angle to
         the head's median plane, + left; :func:`lateral_deg`) within ``lateral_range_deg``,
         and its elevation in the car's frame within ``elevation_deg``; ``obs`` gives the
-        neck's pitch."""
-        lo, hi = self.lateral_range_deg
-        if not lo <= lateral_deg(direction) <= hi:
-            return False
-        el = math.degrees(head_to_body_elevation(direction, head_pose(obs)[1]))
-        return self.elevation_deg[0] <= el <= self.elevation_deg[1]
+        neck's pitch (:func:`~acoustic_sim.frames.in_lateral_region`)."""
+        return in_lateral_region(direction, head_pose(obs)[1], lateral_range_deg=self.lateral_range_deg,
+                                 elevation_deg=self.elevation_deg)
 
     def should_release(self, obs, info) -> bool:
         if not self.hold:  # the lever moved in the last step

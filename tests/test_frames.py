@@ -15,6 +15,7 @@ from acoustic_sim.frames import (
     frame_end_sample,
     head_to_body_azimuth,
     head_to_body_elevation,
+    in_lateral_region,
     lateral_deg,
     pa_to_db_spl,
     rotation_zyx,
@@ -123,6 +124,19 @@ def test_lateral_deg_is_the_angle_to_the_median_plane():
         assert lateral_deg(v) == pytest.approx(math.degrees(math.asin(math.cos(math.radians(el)) * math.sin(math.radians(az)))))
     assert lateral_deg(sph_to_vec(30.0, 0.0)) == pytest.approx(lateral_deg(sph_to_vec(150.0, 0.0))) == pytest.approx(30.0)
     assert lateral_deg([0.0, -2.0, 0.0]) == pytest.approx(-90.0) and lateral_deg([0.0, 0.0, 0.0]) == 0.0
+
+
+def test_in_lateral_region():
+    """The lateral window (either side of the cone of confusion) and the body-frame elevation
+    bounds, the head turned 22 deg right (the yaw leaves both unchanged) or pitched."""
+    def inside(az, el, pitch=0.0):
+        return in_lateral_region(sph_to_vec(az, el), pitch, lateral_range_deg=(5.0, 36.0), elevation_deg=(-90.0, 20.0))
+
+    assert inside(22.0, -10.0) and inside(158.0, -10.0)  # the dashboard speaker and its mirror image
+    assert not inside(-22.0, 0.0) and not inside(0.0, 0.0) and not inside(60.0, 0.0)  # right, median plane, too far left
+    assert not inside(22.0, 30.0) and inside(22.0, 15.0)  # the elevation bound
+    assert not inside(22.0, 15.0, pitch=math.radians(-10.0))  # head nose up 10 deg: 25 deg up in the body's frame
+    assert in_lateral_region(sph_to_vec(22.0, 30.0), lateral_range_deg=(5.0, 36.0))  # no bound by default
 
 
 def test_frame_clock_exact_for_an_hour():

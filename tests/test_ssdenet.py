@@ -67,16 +67,21 @@ def test_fast_bank_localizes_rendered_white_noise(kemar, grid, fast_bank, az, el
     assert angular_error_deg(vector, truth) < 20.0, (az, el, azimuth, elevation)
 
 
+def through_hrirs_errors(hrtf, bank, directions, seed):
+    """Angular errors (deg) of ``bank`` for white noise convolved with ``hrtf``'s HRIRs of
+    each of ``directions`` (no renderer, no microphone: the paper's simulation in small)."""
+    rng = np.random.default_rng(seed)
+    noise = rng.standard_normal(4096 + 2 * 2048)
+    hrir = hrtf.hrirs_for(directions)  # (D, 2, K)
+    audio = np.stack([[fftconvolve(noise, h)[: noise.size] for h in pair] for pair in hrir])  # (D, 2, n)
+    return np.array([angular_error_deg(bank.estimate(analyze(a).spectra[3:]).vector, v) for a, v in zip(audio, directions)])
+
+
 def test_fast_bank_accuracy_over_the_grid(kemar, grid, fast_bank):
     """The paper's simulation experiment in small: white noise through the HRTF of every grid
     direction. Off the median plane (where KEMAR's symmetric ears give identical interaural
     cues for every direction) nearly every direction is found."""
-    rng = np.random.default_rng(11)
-    noise = rng.standard_normal(4096 + 2 * 2048)
-    hrir = kemar.hrirs_for(grid.vectors)  # (D, 2, K)
-    audio = np.stack([[fftconvolve(noise, h)[: noise.size] for h in pair] for pair in hrir])  # (D, 2, n)
-    errors = np.array([angular_error_deg(fast_bank.estimate(analyze(a).spectra[3:]).vector, v)
-                       for a, v in zip(audio, grid.vectors)])
+    errors = through_hrirs_errors(kemar, fast_bank, grid.vectors, seed=11)
     lateral = np.abs(grid.vectors[:, 1]) > 0.1
     assert np.mean(errors[lateral]) < 6.0 and np.mean(errors[lateral] < 20.0) > 0.95, np.sort(errors[lateral])[-10:]
     assert np.median(errors) < 1.0
@@ -85,13 +90,10 @@ def test_fast_bank_accuracy_over_the_grid(kemar, grid, fast_bank):
 def test_fast_bank_accuracy_between_grid_directions(kemar, fast_bank):
     """White noise through every measured KEMAR HRIR (710 directions, twice the grid): the
     renderer plays these, so sources between grid directions must be found too (the bank's
-    jittered training sources; 8.6 deg mean error for the profile's seed, 7.0-9.0 for seeds
-    0-2; a bank trained only at grid directions gives 20.7)."""
-    rng = np.random.default_rng(12)
-    noise = rng.standard_normal(4096 + 2 * 2048)
-    errors = np.array([angular_error_deg(fast_bank.estimate(analyze(np.stack([fftconvolve(noise, h)[: noise.size]
-                                                                              for h in pair])).spectra[3:]).vector, v)
-                       for pair, v in zip(kemar.hrirs_for(kemar.directions), kemar.directions)])
+    jittered training sources; the profile's bank: mean 8.8 deg, median 3.1; training seeds 1
+    and 2 gave means of 10.9 and 10.6 with another noise; a bank trained only at grid
+    directions gives 20.7)."""
+    errors = through_hrirs_errors(kemar, fast_bank, kemar.directions, seed=12)
     assert errors.size == 710
     assert np.mean(errors) < 12.0 and np.median(errors) < 6.0, (np.mean(errors), np.median(errors))
 
