@@ -49,6 +49,10 @@ def add_parsers(sub) -> None:
     loc.add_argument("--profile", default="paper", choices=("paper", "fast"), help="model size (default paper)")
     loc.add_argument("--ssdenet", type=Path, default=None, help="use this SSDENet checkpoint instead of the cached one")
     loc.add_argument("--sound", default=None, help="only use the characteristic bins of this sound class")
+    # Literal, as the SSDENet module (torch) is not imported for --help; a test checks it is ssdenet.FUSIONS.
+    loc.add_argument("--fusion", default="product", choices=("product", "sum"),
+                     help="how SSDENet fuses a frame's bins: product (default: n times their geometric mean, "
+                     "which one confidently wrong bin cannot outvote) or sum (the paper's equation)")
     loc.set_defaults(func=cmd_localize)
 
     det = sub.add_parser(
@@ -151,7 +155,7 @@ def cmd_train(args) -> int:
     return 0
 
 
-def _pipeline(hrtf: str, profile: str, ssdenet_path: Path | None = None):
+def _pipeline(hrtf: str, profile: str, ssdenet_path: Path | None = None, fusion: str = "product"):
     from acoustic_sim.acoustics.hrtf import HRTF
     from acoustic_sim.auditory.melcnn import MelCNN
     from acoustic_sim.auditory.pipeline import AuditoryPipeline
@@ -164,12 +168,12 @@ def _pipeline(hrtf: str, profile: str, ssdenet_path: Path | None = None):
         bank = SSDENetBank.load(ssdenet_path, ears, grid)
     else:
         bank = SSDENetBank.load_or_train(ears, grid, profile)
-    return AuditoryPipeline(hrtf=ears, grid=grid, ssdenet=bank, melcnn=MelCNN.load_or_train(profile))
+    return AuditoryPipeline(hrtf=ears, grid=grid, ssdenet=bank, melcnn=MelCNN.load_or_train(profile), fusion=fusion)
 
 
 def cmd_localize(args) -> int:
     audio = _read_wav(args.wav)
-    pipe = _pipeline(args.hrtf, args.profile, args.ssdenet)
+    pipe = _pipeline(args.hrtf, args.profile, args.ssdenet, args.fusion)
     per_frame, overall = pipe.localize(audio, method=args.method, sound=args.sound)
     out = sys.stdout
     for t, est in per_frame:
@@ -178,6 +182,8 @@ def cmd_localize(args) -> int:
             row.update(azimuth_deg=round(est.azimuth_deg, 2), elevation_deg=round(est.elevation_deg, 2))
         out.write(json.dumps(row) + "\n")
     last = {"overall": True, "method": args.method, "azimuth_deg": None, "elevation_deg": None, "frames": len(per_frame)}
+    if args.method == "ssdenet":
+        last["fusion"] = args.fusion
     if overall is not None:
         last.update(azimuth_deg=round(overall.azimuth_deg, 2), elevation_deg=round(overall.elevation_deg, 2),
                     confidence=round(overall.confidence, 4))

@@ -115,6 +115,10 @@ class HearingTaskEnv(gym.Env):
     """The pipeline's second attribution rule (``AuditoryPipeline(specificity=)``): 0, off."""
     onset_windows = 1
     """Windows the pipeline takes at a rising onset (``AuditoryPipeline(onset_windows=)``): 1."""
+    fusion = "product"
+    """How the pipeline fuses a frame's bins (``AuditoryPipeline(fusion=)``,
+    :data:`acoustic_sim.auditory.ssdenet.FUSIONS`): ``"product"``, the default, or the
+    paper's ``"sum"``."""
     warmup_s = 0.5
     """Seconds the ears listen before the episode starts (see :meth:`_warm_up`)."""
     spec_action_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
@@ -156,7 +160,7 @@ class HearingTaskEnv(gym.Env):
         self._noise_reference_of = None  # (ambient power, ego level) the pipeline's noise reference was made from
         self._ego_unit_spectrum = None  # (ego noise, its unit_power_spectrum for the front end's window)
         self.layout = action_layout(self.scene_name)
-        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows)
+        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows, self.fusion)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32)

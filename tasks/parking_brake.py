@@ -82,6 +82,14 @@ class ParkingBrakeEnv(CabinLeverTask):
     tells nothing here (paper models, 90 episodes: 0.92 success, 0.02 false releases with
     the first-wavefront share and without the rule; fast models, 20 episodes: 0.65 and 0.15
     either way), and judging an onset by the energy it added waits up to a frame."""
+    fusion = "sum"
+    """The paper's sum over bins, not the product (:data:`acoustic_sim.auditory.ssdenet.FUSIONS`):
+    the turn-signal relay's ticks are click-like, so the ratchet class hears them too; the
+    product places them well (at the relay) and their evidence then competes with the
+    ratchet's click in the direction window, where under the sum the click's confident bins
+    win. Scripted policy, sum -> product: paper models, seeds 100-199, success 0.98 -> 0.95
+    (three late releases, two with none); fast models, the tests' seeds 100-119, 0.85 with
+    the product and a false release (seed 115)."""
     default_max_episode_s = 10.0
     relay_probability = 0.6
     relay_start_s = (0.1, 1.2)

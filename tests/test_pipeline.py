@@ -11,9 +11,12 @@ from acoustic_sim.acoustics import sounds
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
+from acoustic_sim.auditory.features import ild_ipd
+from acoustic_sim.auditory.frontend import analyze
 from acoustic_sim.auditory.percept import Percept
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
 from acoustic_sim.auditory.precedence import FirstWavefront
+from acoustic_sim.auditory.ssdenet import FUSION_FLOOR, FUSIONS, valid_bins
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, rotation_zyx, sph_to_vec
 from detectors import AlwaysDetects
@@ -122,10 +125,40 @@ def test_cli_localize_and_detect_print_json_lines(tmp_path, kemar):
     assert r.returncode == 2 and "2 channels" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_fusion_is_the_pipeline_s_choice(pipe, kemar, tmp_path):
+    """``fusion`` reaches localize (the frames' maps fused so, then summed); a bad value is a
+    ConfigError before anything loads; the CLI's --fusion offers exactly ssdenet.FUSIONS."""
+    audio = _render(kemar, "white_noise", 45.0, seconds=0.4)
+    x = analyze(audio).spectra
+    for fusion in FUSIONS:
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, fusion=fusion)
+        assert p.fusion == fusion
+        _, overall = p.localize(audio)
+        maps, _ = pipe.ssdenet.frame_maps(x, p._valid(x), fusion)
+        np.testing.assert_allclose(overall.existence, maps.sum(axis=0), rtol=1e-5)
+        assert abs(overall.azimuth_deg - 45.0) < 20.0, (fusion, overall.azimuth_deg)
+    with pytest.raises(ConfigError, match="fusion"):
+        AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, fusion="max")
+    with pytest.raises(ConfigError, match="fusion"):
+        AuditoryPipeline.load(kemar, "no-such-profile", fusion="mean", progress=False)
+    r = _cli("localize", "--help")
+    assert "{" + ",".join(FUSIONS) + "}" in r.stdout
+    from acoustic_sim.auditory.ssdenet import DEFAULT_FUSION
+    from tasks.base import HearingTaskEnv
+
+    assert HearingTaskEnv.fusion == DEFAULT_FUSION  # the tasks' literal default is the pipeline's
+    wav = tmp_path / "n.wav"
+    assert _cli("render", "--sound", "white_noise", "--azimuth", "60", "--seconds", "0.4", "--out", str(wav)).returncode == 0
+    r = _cli("localize", str(wav), "--profile", "fast", "--fusion", "sum")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout.splitlines()[-1])["fusion"] == "sum"
+
+
 def test_cli_refuses_a_checkpoint_of_another_hrtf(tmp_path, spherical):
+    from profiles import TINY
+
     from acoustic_sim.auditory.ssdenet import SSDENetBank
     from acoustic_sim.directions import DirectionGrid
-    from profiles import TINY
 
     ckpt = tmp_path / "sphere.pt"
     SSDENetBank.rebuild(spherical, DirectionGrid.paper(spherical), TINY, progress=False, path=ckpt)  # any profile will do
@@ -146,17 +179,19 @@ def test_eval_paper_quick_writes_every_file_with_every_key(tmp_path):
     loc = json.loads((out / "localization.json").read_text())
     assert len(loc["simulation"]) == 13
     for row in loc["simulation"]:
-        assert {"signal", "f0_hz", "ssdenet_deg", "music_deg", "gcc_phat_deg"} <= set(row)
-        assert all(0 <= row[k] <= 180 for k in ("ssdenet_deg", "music_deg", "gcc_phat_deg"))
+        keys = ("ssdenet_deg", "ssdenet_sum_deg", "music_deg", "gcc_phat_deg")
+        assert {"signal", "f0_hz", *keys} <= set(row)
+        assert all(0 <= row[k] <= 180 for k in keys)
     room = loc["room"]
     for key in ("horizontal_mean_deg", "median_mean_deg", "lr_accuracy", "tb_accuracy", "front_back_confusion"):
-        assert set(room[key]) == {"ssdenet", "music", "gcc-phat", "ssdenet-wavefront"}, key
+        assert set(room[key]) == {"ssdenet", "ssdenet-sum", "music", "gcc-phat", "ssdenet-wavefront"}, key
     assert room["wavefront_windows"] == 3
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["targets"]) == 5 and all({"target", "result", "met"} <= set(t) for t in summary["targets"])
     det = json.loads((out / "detection.json").read_text())
     assert 0 <= det["f1_macro"] <= 1 and set(det["per_class"]) == set(sounds.SOUND_CLASSES)
-    assert "| signal |" in (out / "REPORT.md").read_text()
+    report = (out / "REPORT.md").read_text()
+    assert "| signal | f0 (Hz) | SSDENet | SSDENet, sum | MUSIC | GCC-PHAT |" in report
 
 
 def test_direction_keeps_the_evidence_of_recent_frames(pipe, kemar):
@@ -227,18 +262,27 @@ class _DetectsSome:
         return p
 
 
-def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, kemar):
-    """The streaming estimate (maps computed once per frame and bin, only for the detected
-    classes' bins) equals the definition: per class, the existence maps of the whole bank
-    summed over the last direction_frames frames and over the valid bins that are the class's."""
-    from acoustic_sim.auditory.features import ild_ipd
-    from acoustic_sim.auditory.frontend import analyze
-    from acoustic_sim.auditory.ssdenet import valid_bins
+def _fused(maps, use, fusion):
+    """Reference fusion: maps (..., n, D) of the bins ``use`` (..., n) -> (..., D): their sum,
+    or their count times their geometric mean (floored), per frame."""
+    if fusion == "sum":
+        return (maps * use[..., None]).sum(axis=-2)
+    n = use.sum(axis=-1)[..., None]
+    logs = (np.log(np.maximum(maps, FUSION_FLOOR)) * use[..., None]).sum(axis=-2)
+    return np.where(n > 0, n * np.exp(logs / np.maximum(n, 1)), 0.0)
 
+
+@pytest.mark.parametrize("fusion", ["product", "sum"])
+def test_class_direction_fuses_its_valid_bins_and_sums_recent_frames(pipe, kemar, fusion):
+    """The streaming estimate (maps computed once per frame and bin, only for the detected
+    classes' bins) equals the definition: per class, per frame, the existence maps of the
+    valid bins that are the class's fused (the sum, or n times the geometric mean), summed
+    over the last direction_frames frames."""
     bank = pipe.ssdenet
     audio = _render(kemar, "white_noise", -60.0, room="car_cabin", seconds=0.6, distance=0.8, level=70.0)
     cnn = _DetectsSome(pipe.melcnn, bank.bins)
-    p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, direction_frames=5, precedence=None)
+    p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, direction_frames=5, precedence=None,
+                         fusion=fusion)
     percepts = p.process(audio)
     x = analyze(audio).spectra
     valid = valid_bins(x, p.noise_power, p.factor)[:, bank.bins]  # (K, n_bank)
@@ -252,7 +296,7 @@ def test_class_direction_is_the_sum_of_its_valid_bins_over_recent_frames(pipe, k
             use &= (use.sum(axis=1) >= p.coverage * own.sum())[:, None]  # frames that cover the class's bins
             if not use.any():
                 continue
-            want = (maps[k - 4 : k + 1] * use[..., None]).sum(axis=(0, 1))
+            want = _fused(maps[k - 4 : k + 1], use, fusion).sum(axis=0)
             got = percepts[k].directions[p.classes[c]]
             assert got.n_bins == int(use.sum())
             np.testing.assert_allclose(got.existence, want, rtol=1e-4, atol=1e-4)
@@ -435,11 +479,12 @@ def test_first_wavefront_hears_the_loudspeaker_switch_on_in_the_lab(pipe, kemar)
             localization.first_wavefront(bank, windows=bad)
 
 
-def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alone(pipe, kemar):
+@pytest.mark.parametrize("fusion", ["product", "sum"])
+def test_more_onset_windows_pool_a_rising_onset_s_maps_and_leave_a_click_alone(pipe, kemar, fusion):
     """onset_windows=3: a broadband sound ramped up over 6 ms (a rising onset) is heard
     through three windows: the class's map at the onset's frame is, per valid bin, the mean
-    of the three windows' existence maps (summed over the bins); a click (a decaying burst)
-    through one. Bad values are errors."""
+    (sum fusion) or geometric mean (product) of the three windows' existence maps, fused
+    over the bins; a click (a decaying burst) through one. Bad values are errors."""
     bank = pipe.ssdenet
     cnn = _DetectsSome(pipe.melcnn, bank.bins)
     rng = np.random.default_rng(6)
@@ -452,7 +497,8 @@ def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alon
         sig = 0.05 * noise * env
         x[0, start:] += sig
         x[1, start + 12:] += 0.5 * sig[:-12]
-        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, onset_windows=3, direction_frames=1)
+        p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, onset_windows=3, direction_frames=1,
+                             fusion=fusion)
         for i in range(0, n, 706):  # about a frame at a time, to see each frame's evidence
             out = p.process(x[:, i : i + 706])
             valid, features = p.evidence[-1][:2] if out else (np.zeros(1, bool), None)
@@ -461,8 +507,12 @@ def test_more_onset_windows_average_a_rising_onset_s_maps_and_leave_a_click_alon
                 break
         assert features.shape == (k, int(valid.sum()), 5), kind  # (windows, valid bins, 5)
         pos = np.flatnonzero(valid)
-        maps = bank.existence(features, subset=pos).mean(axis=0)
-        want = maps[own[pos]].sum(axis=0)
+        looks = bank.existence(features, subset=pos)  # (k, n_valid, D)
+        if fusion == "sum":
+            maps = looks.mean(axis=0)
+        else:
+            maps = np.exp(np.log(np.maximum(looks, FUSION_FLOOR)).mean(axis=0))
+        want = _fused(maps, own[pos], fusion)
         np.testing.assert_allclose(q.directions[p.classes[0]].existence, want, rtol=1e-4, atol=1e-5)
     with pytest.raises(ConfigError, match="onset_windows"):
         AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=cnn, onset_windows=0)

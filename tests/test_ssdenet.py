@@ -140,28 +140,94 @@ def test_batched_existence_equals_per_bin_loop(fast_bank):
         fast_bank.existence(features[:, :1], subset=[fast_bank.n_bins])
 
 
-def test_frame_maps_sum_only_valid_bank_bins(fast_bank):
+def geometric(p, axis):
+    """n times the geometric mean along ``axis``, floored as the product fusion floors."""
+    p = np.maximum(p, S.FUSION_FLOOR)
+    return p.shape[axis] * np.exp(np.log(p).mean(axis=axis))
+
+
+@pytest.mark.parametrize("fusion, pool", [("sum", lambda p, axis: p.sum(axis=axis)), ("product", geometric)])
+def test_frame_maps_fuse_only_valid_bank_bins(fast_bank, fusion, pool):
     rng = np.random.default_rng(4)
     spectra = (rng.standard_normal((3, 2, N_BINS)) + 1j * rng.standard_normal((3, 2, N_BINS))).astype(np.complex64)
     sel = spectra[:, :, fast_bank.bins]
     per_bin = fast_bank.existence(ild_ipd(sel[:, 0], sel[:, 1]))  # (3, n_bins, D)
-    full, n_full = fast_bank.frame_maps(spectra)
-    np.testing.assert_allclose(full, per_bin.sum(axis=1), rtol=1e-5)
+    full, n_full = fast_bank.frame_maps(spectra, fusion=fusion)
+    np.testing.assert_allclose(full, pool(per_bin, 1), rtol=1e-4)
     assert n_full.tolist() == [fast_bank.n_bins] * 3
     # Per-frame masks over the 1025 bins; bins outside the bank are ignored.
     mask = np.zeros((3, N_BINS), bool)
     mask[0, fast_bank.bins[:3]] = True
     mask[1, fast_bank.bins[-2:]] = True
     mask[:, fast_bank.bins[0] + 1] = True  # not a bank bin
-    maps, n_valid = fast_bank.frame_maps(spectra, mask)
+    maps, n_valid = fast_bank.frame_maps(spectra, mask, fusion)
     assert n_valid.tolist() == [3, 2, 0]
-    np.testing.assert_allclose(maps[0], per_bin[0, :3].sum(axis=0), rtol=1e-5)
-    np.testing.assert_allclose(maps[1], per_bin[1, -2:].sum(axis=0), rtol=1e-5)
+    np.testing.assert_allclose(maps[0], pool(per_bin[0, :3], 0), rtol=1e-4)
+    np.testing.assert_allclose(maps[1], pool(per_bin[1, -2:], 0), rtol=1e-4)
     assert np.all(maps[2] == 0)
     # Integer bin indices mean the same mask for every frame.
-    maps_idx, n_idx = fast_bank.frame_maps(spectra, fast_bank.bins[:3])
-    np.testing.assert_allclose(maps_idx, per_bin[:, :3].sum(axis=1), rtol=1e-5)
+    maps_idx, n_idx = fast_bank.frame_maps(spectra, fast_bank.bins[:3], fusion)
+    np.testing.assert_allclose(maps_idx, pool(per_bin[:, :3], 1), rtol=1e-4)
     assert n_idx.tolist() == [3, 3, 3]
+    # A whole recording: the frames' maps summed.
+    est = fast_bank.estimate(spectra, mask, fusion)
+    np.testing.assert_allclose(est.existence, maps.sum(axis=0), rtol=1e-5)
+
+
+FLOOR_ATOL = 1.01 * S.FUSION_FLOOR
+
+
+def test_fuse_and_pool_looks():
+    p = np.array([[0.95, 0.5, 0.1], [0.8, 0.6, 0.0], [0.1, 0.7, 0.9]], np.float32)  # 3 bins x 3 directions
+    select = np.array([[1, 1, 1], [1, 1, 0], [0, 0, 0]], bool)
+    s = S.fuse(p, select, "sum")
+    np.testing.assert_allclose(s, [[1.85, 1.8, 1.0], [1.75, 1.1, 0.1], [0, 0, 0]], rtol=1e-6)
+    assert int(np.argmax(s[0])) == 0  # two confident bins outvote the third
+    g = S.fuse(p, select, "product")
+    # The product wants a direction likely at every bin: direction 1 (0.5, 0.6, 0.7); a bin
+    # at zero vetoes a direction down to the floor (direction 2).
+    np.testing.assert_allclose(g[0], 3 * np.cbrt(np.maximum(p, S.FUSION_FLOOR).prod(axis=0)), rtol=1e-5)
+    assert int(np.argmax(g[0])) == 1 and g[0, 2] < 0.2
+    np.testing.assert_allclose(g[1], 2 * np.sqrt(np.maximum(p[:2], S.FUSION_FLOOR).prod(axis=0)), rtol=1e-5)
+    assert np.all(g[2] == 0) and g.dtype == np.float32
+    # One bin: both fusions are that bin's map (but for the floor).
+    one = np.array([[0, 1, 0]], bool)
+    np.testing.assert_allclose(S.fuse(p, one, "product"), S.fuse(p, one, "sum"), rtol=1e-6, atol=FLOOR_ATOL)
+    # Leading axes broadcast (frames).
+    frames = np.stack([p, p[::-1]])
+    np.testing.assert_allclose(S.fuse(frames, select[None].repeat(2, 0), "product")[1],
+                               S.fuse(p[::-1], select, "product"), rtol=1e-6)
+    # Looks at the same bins: their mean, or their geometric mean.
+    looks = np.stack([p, 0.5 * p])
+    np.testing.assert_allclose(S.pool_looks(looks, "sum"), 0.75 * p, rtol=1e-6)
+    np.testing.assert_allclose(S.pool_looks(looks, "product"), np.sqrt(np.maximum(p, S.FUSION_FLOOR)
+                                                                       * np.maximum(0.5 * p, S.FUSION_FLOOR)), rtol=1e-5)
+    with pytest.raises(ConfigError, match="fusion"):
+        S.fuse(p, select, "max")
+    with pytest.raises(ConfigError, match="fusion"):
+        S.pool_looks(looks, "mean")
+    assert S.DEFAULT_FUSION in S.FUSIONS
+
+
+def test_product_fusion_localizes_a_sound_of_few_bins(kemar, grid, fast_bank):
+    """A 2 kHz square wave (odd harmonics only: few of the bank's bins are valid) from every
+    grid direction, through the HRTF with sensor noise (``eval paper``'s simulation): under
+    the paper's sum a bin that is confidently wrong outvotes the others; the product fusion
+    halves the mean error (this bank, seed 0: 11.5 deg against 22.1; seeds 1 and 2: 13.0
+    against 25.1, 11.0 against 21.9)."""
+    from acoustic_sim.experiments.localization import SIM_SECONDS, _frames_of, _signal, simulate_source
+
+    rng = np.random.default_rng(0)
+    x = _signal("square", 2000.0, SIM_SECONDS + 2048 / kemar.sample_rate, rng)
+    errors = {"sum": [], "product": []}
+    for d in grid.vectors:
+        audio, noise = simulate_source(kemar, d, x, rng)
+        spectra = _frames_of(audio, skip=3)
+        valid = S.valid_bins(spectra, noise, class_bins=fast_bank.bins, leakage=S.LEAKAGE)
+        for fusion, e in errors.items():
+            e.append(angular_error_deg(fast_bank.estimate(spectra, valid, fusion).vector, d))
+    product, total = np.mean(errors["product"]), np.mean(errors["sum"])
+    assert product < 16.0 and product < total - 5.0, (product, total)
 
 
 # -- silence and valid bins --------------------------------------------------------------------

@@ -2,8 +2,8 @@
 
 A :class:`Percept` is the output of the paper's "central nervous system" for one 16 ms ear
 frame: which sounds are present (MelCNN, fused over the ears) and, for each detected sound,
-where it is (SSDENet's existence map over the direction grid, summed over the valid bins
-of that sound). Directions are in the head frame (x forward, y left, z up; azimuth
+where it is (SSDENet's existence map over the direction grid, fused over the valid bins
+of that sound, :data:`~acoustic_sim.auditory.ssdenet.FUSIONS`). Directions are in the head frame (x forward, y left, z up; azimuth
 counter-clockwise from the nose, elevation up), degrees at the boundary, unit vectors
 inside.
 """
@@ -26,7 +26,8 @@ class DirectionEstimate:
     azimuth_deg, elevation_deg : float
         The same direction in degrees (azimuth -180..180, + = left; elevation -90..90).
     existence : numpy.ndarray
-        float32 (D,): P(d) summed over the valid bins, one value per grid direction.
+        float32 (D,): P(d) fused over the valid bins (the pipeline's ``fusion``) and summed
+        over frames, one value per grid direction.
     confidence : float
         0..1: how much the peak stands out, ``(max - mean) / max`` of ``existence``
         (0 for a flat map, 1 for a single non-zero direction).

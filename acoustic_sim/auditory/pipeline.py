@@ -8,15 +8,19 @@ Per ear frame (62.5 Hz on the sample clock)::
     detected   = classes with p >= threshold
     valid_c    = bins with power > factor x noise and > leakage x the window's leakage of
                  any other bin, within the characteristic bins of c
-    P_c(d)     = sum over valid_c of SSDENet_i(ILD, IPD),          ssdenet.SSDENetBank
-                 over the last ``direction_frames`` frames
+    P_c(d)     = fuse over valid_c of SSDENet_i(ILD, IPD),         ssdenet.fuse
+                 summed over the last ``direction_frames`` frames
     estimate_c = argmax_d P_c(d)
+
+Fusion (``fusion``): a frame's bins are fused by n times their geometric mean (default,
+``"product"``) or by the paper's sum (``"sum"``); :data:`~acoustic_sim.auditory.ssdenet.FUSIONS`
+says why and what each gave on the tasks. Frames are summed either way.
 
 Why a class's direction sums the last frames, not only the current one: the MelCNN sees
 the last 25 frames, so it declares a class some frames after its sound began. A click
 (the ratchet) is over by then: the current frame holds no energy in its bins, and its
 direction lies in the frames it was detected from. Summing the existence maps of the
-recent frames (the paper's sum over bins, extended over time) keeps that evidence and
+recent frames (the paper's sum, extended over time) keeps that evidence and
 averages out the frame-to-frame scatter that reverberation gives the interaural cues.
 The maps are computed only when some class is detected, only for valid bins within the
 detected classes' characteristic bins (no class sums the others), once per frame and bin,
@@ -92,7 +96,16 @@ from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_fre
 from acoustic_sim.auditory.melcnn import MelCNN, fuse_unchecked
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.auditory.precedence import FirstWavefront
-from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, noise_power_spectrum, valid_bins
+from acoustic_sim.auditory.ssdenet import (
+    DEFAULT_FUSION,
+    LEAKAGE,
+    SSDENetBank,
+    check_fusion,
+    fuse,
+    noise_power_spectrum,
+    pool_looks,
+    valid_bins,
+)
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, sph_to_vec, vec_to_sph
@@ -188,9 +201,13 @@ class AuditoryPipeline:
         hardly lies in the alarm's bins.
     onset_windows : int
         With ``precedence="wavefront"``: windows taken at a rising onset (the first
-        wavefront's and more, 1 ms apart; default 1), whose existence maps are averaged per
-        bin (:class:`~acoustic_sim.auditory.precedence.FirstWavefront`, ``windows``; what
-        it measured is in that module's docstring).
+        wavefront's and more, 1 ms apart; default 1), whose existence maps are pooled per
+        bin (:func:`~acoustic_sim.auditory.ssdenet.pool_looks`: the mean under the sum, the
+        geometric mean under the product; :class:`~acoustic_sim.auditory.precedence.FirstWavefront`,
+        ``windows``; what it measured is in that module's docstring).
+    fusion : str
+        How the existence maps of a frame's bins are fused: ``"product"`` (default) or
+        ``"sum"`` (the paper's equation); :data:`~acoustic_sim.auditory.ssdenet.FUSIONS`.
 
     Use :meth:`load` to get one with trained (cached) models.
     """
@@ -199,7 +216,7 @@ class AuditoryPipeline:
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
                  onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0,
-                 leakage: float = LEAKAGE, onset_windows: int = 1) -> None:
+                 leakage: float = LEAKAGE, onset_windows: int = 1, fusion: str = DEFAULT_FUSION) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -224,6 +241,7 @@ class AuditoryPipeline:
             raise ConfigError(f"onset_windows must be an integer >= 1, got {onset_windows!r}")
         if not isinstance(direction_frames, (int, np.integer)) or not 1 <= direction_frames <= MEL_FRAMES:
             raise ConfigError(f"direction_frames must be an integer in 1..{MEL_FRAMES}, got {direction_frames!r}")
+        self.fusion = check_fusion(fusion)
         self.hrtf = hrtf
         self.grid = grid
         self.ssdenet = ssdenet
@@ -283,7 +301,7 @@ class AuditoryPipeline:
              threshold: float = 0.5, direction_frames: int | None = None,
              precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = 0.0,
              specificity: float = 0.0, leakage: float = LEAKAGE, onset_windows: int = 1,
-             progress: bool = True) -> AuditoryPipeline:
+             fusion: str = DEFAULT_FUSION, progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -294,14 +312,18 @@ class AuditoryPipeline:
             Model size: ``paper`` or ``fast`` (tests).
         melcnn_profile : str, optional
             MelCNN profile if it differs from ``profile``.
+
+        The other parameters are the constructor's.
         """
+        check_fusion(fusion)  # before any training
         ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
         grid = DirectionGrid.paper(ears)
         bank = SSDENetBank.load_or_train(ears, grid, profile, progress=progress)
         cnn = MelCNN.load_or_train(melcnn_profile or profile, progress=progress)
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
                    direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
-                   coverage=coverage, specificity=specificity, leakage=leakage, onset_windows=onset_windows)
+                   coverage=coverage, specificity=specificity, leakage=leakage, onset_windows=onset_windows,
+                   fusion=fusion)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -431,7 +453,7 @@ class AuditoryPipeline:
                 pos = np.flatnonzero(need)
                 rows = np.searchsorted(np.flatnonzero(valid), pos)  # features are stored for the valid bins
                 m = self.ssdenet.existence(features[..., rows, :], subset=pos, within=within)
-                maps[pos] = m.mean(axis=0) if m.ndim == 3 else m  # several onset windows: their mean per bin
+                maps[pos] = pool_looks(m, self.fusion) if m.ndim == 3 else m  # several onset windows, pooled per bin
                 have |= need
             sel = masks[:, used]  # (c, n_used)
             if self.coverage > 0.0:
@@ -441,7 +463,7 @@ class AuditoryPipeline:
             if shares is not None:
                 # ... and only when the onset's energy lies enough in the class's bins.
                 sel = sel & (shares[class_indices] >= self.specificity)[:, None]
-            total += sel.astype(np.float32) @ maps[used]
+            total += fuse(maps[used], sel, self.fusion)
             counts += sel.sum(axis=1)
         return {
             self.classes[c]: _estimate(total[i].astype(np.float32), self.grid, int(counts[i]), "ssdenet")
@@ -487,7 +509,7 @@ class AuditoryPipeline:
                 mask = np.zeros(N_BINS, bool)
                 mask[self.ssdenet.bins[self._class_masks[self.classes.index(sound)]]] = True
                 valid = valid & mask
-            maps, n_valid = self.ssdenet.frame_maps(x, valid)
+            maps, n_valid = self.ssdenet.frame_maps(x, valid, self.fusion)
             csum = np.cumsum(maps, axis=0)
             nsum = np.cumsum(n_valid)
             per_frame = []

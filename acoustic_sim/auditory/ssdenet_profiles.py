@@ -279,25 +279,24 @@ enough above 2 kHz (13 bins in 6-12 kHz, where the pinna notches are) for the sp
 cues of front and back; the low ERB fill keeps the interaural phase of lateral directions,
 unambiguous only below about 1.5 kHz, sampled every 65-200 Hz. The full ``eval paper`` run
 (musashi ears, ``results/paper``, with the validity rule's leakage test,
-:data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`): SSDENet below MUSIC on all 13 signals
-(triangle 500 Hz 4.9 against 17.0 deg, white noise 4.5 against 8.3; banks trained on this
-machine's CPU, 2026-12-03; an earlier machine's gave 5.3 and 4.2); the narrowest margin is
-the 2 kHz sine (42.7 against 44.0), a single bin, where the lattice changes nothing. Above
-15 deg among the broadband signals: square 2 kHz, 20.8 deg (21.5 with the earlier
-machine's banks): its harmonics up to 12 kHz meet three networks (2, 6 and 10 kHz); its
-median error is 0 and its mean comes from cone-of-confusion mistakes (the same lateral
-angle, another elevation), which three bins' interaural cues do not resolve: banks trained
-on those three bins alone (109 directions; 1 or 2 epochs, 1000 or 3000 sounds) gave
-17.7-24.3 deg for the square wave and 17.3-22.6 deg for white noise heard through the same
-three bins, so more training does not reach 15 deg; nor do the next harmonics, which lie
-outside the networks' 300 Hz-12 kHz range: banks of this size on the musashi ears (327
-directions, a ``/tmp`` script, 2026-12-03) on the three bins gave 21.3 deg for the square
-wave, with a 14 kHz network as well 24.0, with 14 and 18 kHz 19.7; and on the three bins
-the training's other choices do not either: virtual sources only at the grid directions
-(``jitter_deg=0``, where this test puts them) 27.2, ``sigma_deg`` 3 23.1, ``sigma_deg`` 10
-29.1 (against 21.3 with the profile's 6 and 6). A pure tone off the lattice above 1.8 kHz
-(a 2.25 kHz sine, a voice's upper harmonics) meets no network, and one below it only where
-the fill has a bin: a bank of a subset of bins cannot localise every tone.
+:data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`, and the product fusion of bins,
+:data:`~acoustic_sim.auditory.ssdenet.FUSIONS`): SSDENet below MUSIC on all 13 signals
+(triangle 500 Hz 1.7 against 17.0 deg, white noise 0.9 against 8.3; banks trained on this
+machine's CPU, 2026-12-05); the narrowest margin is the 2 kHz sine (42.7 against 44.0), a
+single bin, where the lattice changes nothing. The worst broadband signal is the 2 kHz
+square wave, 9.9 deg: its harmonics up to 12 kHz meet three networks (2, 6 and 10 kHz).
+Under the paper's sum of the bins' maps it was 20.8 deg, with a median of 0: the mean came
+from cone-of-confusion mistakes (the same lateral angle, another elevation), where one of
+the three bins' confident wrong peak outvoted the other two; the evidence was there (the
+product of the three maps finds the direction). Before that was found, neither more
+training nor more bins reached 15 deg under the sum: banks trained on those three bins alone
+(109 directions; 1 or 2 epochs, 1000 or 3000 sounds) gave 17.7-24.3 deg for the square wave;
+on the musashi ears (327 directions, a ``/tmp`` script, 2026-12-03) 21.3 deg, with a 14 kHz
+network as well 24.0, with 14 and 18 kHz 19.7; ``jitter_deg=0`` 27.2, ``sigma_deg`` 3 23.1,
+``sigma_deg`` 10 29.1 (against 21.3 with the profile's 6 and 6). A pure tone off the
+lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper harmonics) meets no network, and one
+below it only where the fill has a bin: a bank of a subset of bins cannot localise every
+tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
 grid) is a virtual source, not only the 327 nearest to grid directions, so sources between

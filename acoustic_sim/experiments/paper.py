@@ -23,7 +23,7 @@ from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.measure import measure_hrtf
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.melcnn import MelCNN, evaluate, report_rng
-from acoustic_sim.auditory.ssdenet import LEAKAGE, SSDENetBank, valid_bins
+from acoustic_sim.auditory.ssdenet import DEFAULT_FUSION, LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.experiments import hrtf_figures, localization
 from acoustic_sim.experiments.report import targets as report_targets, write_json, write_report
@@ -42,26 +42,33 @@ rooms are cut. The paper does not give its response length. On the lab room's me
 (the same 25 elevations x 4 trials, first-wavefront estimator), a bank from responses of 512
 taps (the conference room's reflections of the first 11.6 ms in them; the first estimator's
 Welch segments) gave top-bottom 0.77 and front-back confusion 0.32, one from 128 taps 0.84
-and 0.23 (SSDENet on the frames: 0.60-0.66 and 0.64). The full run (``results/paper``)
-with 128 taps: top-bottom 0.84 on the first wavefront (one window; 0.87 with the three of
-:data:`~acoustic_sim.experiments.localization.ROOM_ONSET_WINDOWS`), 0.72 on the frames (0.64
-with the 512-tap bank), MUSIC 0.80 (0.68)."""
+and 0.23 (SSDENet on the frames: 0.60-0.66 and 0.64). The full run with 128 taps and the
+paper's sum of bins: top-bottom 0.84 on the first wavefront (one window; 0.87 with the three
+of :data:`~acoustic_sim.experiments.localization.ROOM_ONSET_WINDOWS`), 0.72 on the frames
+(0.64 with the 512-tap bank), MUSIC 0.80 (0.68); with the product fusion of bins
+(``results/paper``) 0.90 on the first wavefront and 0.79 on the frames."""
 
 
 def _estimators(hrtf: HRTF, grid: DirectionGrid, bank: SSDENetBank) -> dict:
-    """The three methods as ``(spectra, noise_power) -> unit vector``."""
+    """The methods as ``(spectra, noise_power) -> unit vector``: SSDENet with the default
+    fusion of bins (``ssdenet``, the product) and with the paper's sum (``ssdenet-sum``),
+    MUSIC and GCC-PHAT."""
     music = Music(hrtf, grid)
     gcc = GccPhat(hrtf)
     ahead = localization.straight_ahead(grid)
 
-    def ssdenet(spectra, noise):
-        est = bank.estimate(spectra, valid_bins(spectra, noise, class_bins=bank.bins, leakage=LEAKAGE))
-        # No valid bin (the source is below the noise everywhere): no information, so the
-        # estimate is straight ahead, as for the baselines on silence.
-        return ahead if est is None else est.vector
+    def ssdenet(fusion):
+        def estimate(spectra, noise):
+            est = bank.estimate(spectra, valid_bins(spectra, noise, class_bins=bank.bins, leakage=LEAKAGE), fusion)
+            # No valid bin (the source is below the noise everywhere): no information, so the
+            # estimate is straight ahead, as for the baselines on silence.
+            return ahead if est is None else est.vector
+
+        return estimate
 
     return {
-        "ssdenet": ssdenet,
+        "ssdenet": ssdenet(DEFAULT_FUSION),
+        "ssdenet-sum": ssdenet("sum"),
         "music": lambda spectra, noise: music.estimate(spectra)[0],
         "gcc-phat": lambda spectra, noise: gcc.estimate(spectra)[0],
     }
@@ -114,7 +121,7 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     measured = HRTF.load(sofa)
     mgrid = DirectionGrid.paper(measured)
     mbank = SSDENetBank.load_or_train(measured, mgrid, ssdenet_profile, progress=progress)
-    # Beside the paper's three methods on the frames: the streaming pipeline's precedence
+    # Beside the paper's methods on the frames: the streaming pipeline's precedence
     # rule (SSDENet on the loudspeaker's first wavefront), with the same bank.
     wavefront = localization.first_wavefront(mbank, windows=localization.ROOM_ONSET_WINDOWS)
     room = localization.room(ears, _estimators(measured, mgrid, mbank), rng=rng, quick=quick, progress=progress,

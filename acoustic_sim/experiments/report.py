@@ -19,9 +19,15 @@ import numpy as np  # noqa: E402
 
 from acoustic_sim.errors import ConfigError  # noqa: E402
 
-METHODS = ("ssdenet", "music", "gcc_phat")
-LABELS = {"ssdenet": "SSDENet", "music": "MUSIC", "gcc_phat": "GCC-PHAT", "gcc-phat": "GCC-PHAT",
-          "ssdenet-wavefront": "SSDENet, first wavefront"}
+METHODS = ("ssdenet", "ssdenet_sum", "music", "gcc_phat")
+"""The simulation table's methods, as JSON keys (a run from before ``ssdenet_sum`` lacks it)."""
+LABELS = {"ssdenet": "SSDENet", "ssdenet_sum": "SSDENet, sum", "ssdenet-sum": "SSDENet, sum", "music": "MUSIC",
+          "gcc_phat": "GCC-PHAT", "gcc-phat": "GCC-PHAT", "ssdenet-wavefront": "SSDENet, first wavefront"}
+FUSION_NOTE = ("*SSDENet* fuses the valid bins of a frame by n times their geometric mean (the default, "
+               "`acoustic_sim.auditory.ssdenet.FUSIONS`: a bin that is confidently wrong cannot outvote the "
+               "others); *SSDENet, sum* is the paper's equation, P(d) = sum_i P(d, w_i), with the same networks "
+               "and bins. Frames are summed in both.")
+"""Said under the simulation table: what the two SSDENet columns are."""
 BEGIN, END = "<!-- paper:begin -->", "<!-- paper:end -->"
 
 
@@ -110,6 +116,11 @@ def _target_lines(loc: dict, det: dict) -> list[str]:
     return lines + [""]
 
 
+def _methods(loc: dict) -> list[str]:
+    """The simulation's methods present in a run (:data:`METHODS`, in order)."""
+    return [m for m in METHODS if f"{m}_deg" in loc["simulation"][0]]
+
+
 def tables(out) -> str:
     """The Markdown tables of a finished run (the body of REPORT.md and the README section)."""
     out = Path(out)
@@ -133,12 +144,14 @@ def tables(out) -> str:
         f"**Localization in simulation** (mean angular error in deg over {loc['directions']} directions, "
         f"{loc['hrtf']}, `{loc['profile']}` models):",
         "",
-        "| signal | f0 (Hz) | SSDENet | MUSIC | GCC-PHAT |",
-        "|---|---|---|---|---|",
+        "| signal | f0 (Hz) | " + " | ".join(LABELS[m] for m in _methods(loc)) + " |",
+        "|---|---|" + "---|" * len(_methods(loc)),
     ]
     for row in loc["simulation"]:
         f0 = "-" if row["f0_hz"] is None else f"{row['f0_hz']:.0f}"
-        lines.append(f"| {row['signal']} | {f0} | " + " | ".join(_fmt(row[f"{m}_deg"]) for m in METHODS) + " |")
+        lines.append(f"| {row['signal']} | {f0} | " + " | ".join(_fmt(row[f"{m}_deg"]) for m in _methods(loc)) + " |")
+    if "ssdenet_sum" in _methods(loc):
+        lines += ["", FUSION_NOTE]
     room = loc["room"]
     keys = list(room["horizontal_mean_deg"])
     lines += [
@@ -159,8 +172,9 @@ def tables(out) -> str:
         where = "a 1.75 ms window" if n == 1 else f"{n} windows of 1.75 ms, 1 ms apart,"
         lines += [
             "",
-            "The paper's three methods use the frames after the loudspeaker has started; *SSDENet, first wavefront* "
-            f"is the same bank on {where} at the loudspeaker's onset (the streaming pipeline's precedence rule, "
+            "The paper's methods (SSDENet with either fusion, MUSIC, GCC-PHAT) use the frames after the loudspeaker "
+            "has started; *SSDENet, first wavefront* "
+            f"is the same bank (product fusion) on {where} at the loudspeaker's onset (the streaming pipeline's precedence rule, "
             "`acoustic_sim.experiments.localization.first_wavefront`), which most of the lab's reflections reach too late to enter.",
         ]
     lines += [
@@ -184,13 +198,16 @@ def localization_figures(out) -> list[str]:
     names = [r["signal"] if r["f0_hz"] is None else f"{r['signal']}\n{r['f0_hz']:.0f}" for r in rows]
     fig, ax = plt.subplots(figsize=(11, 3.6))
     x = np.arange(len(rows))
-    for i, m in enumerate(METHODS):
-        ax.bar(x + (i - 1) * 0.27, [r[f"{m}_deg"] for r in rows], width=0.27, label=LABELS[m])
+    methods = _methods(loc)
+    width = 0.8 / len(methods)
+    for i, m in enumerate(methods):
+        ax.bar(x + (i - (len(methods) - 1) / 2) * width, [r[f"{m}_deg"] for r in rows], width=width, label=LABELS[m])
     ax.axhline(90, color="grey", lw=0.8, ls=":", label="chance (90 deg)")
     ax.set_xticks(x, names, fontsize=7)
     ax.set_ylabel("mean angular error (deg)")
     ax.set_title(f"Localization in simulation ({loc['hrtf']}, {loc['directions']} directions)")
-    ax.legend(fontsize=8, ncols=4)
+    ax.set_ylim(0, 118)  # room for the legend above the bars near chance
+    ax.legend(fontsize=8, ncols=len(methods) + 1, loc="upper right")
     fig.tight_layout()
     fig.savefig(out / "localization_simulation.png", dpi=110)
     plt.close(fig)
