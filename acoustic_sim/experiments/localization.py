@@ -197,9 +197,10 @@ loudspeaker's noise reaches the head before any of the lab's reflections (the fl
 4 ms later), so the later windows add looks at the direct sound: measured on the median
 plane (paper bank from the responses measured in the conference room, musashi ears, 25
 elevations x 4 trials, seeds 1-9 of a ``/tmp`` script, not the committed run's; the sum
-fusion of bins, the windows' maps averaged), top-bottom 0.846 with one window and 0.866 with three (higher in 8 of the 9 seeds), front-back
-confusion 0.26 both, mean error 43.8 -> 42.2 deg; one longer window instead (ending 3 or
-4.75 ms after the onset): 0.843 and 0.852. On the horizontal plane (12 azimuths x 4 trials,
+fusion of bins, the windows' maps averaged), top-bottom 0.846 with one window and 0.866
+with three (higher in 8 of the 9 seeds), front-back confusion 0.26 both, mean error 43.8
+-> 42.2 deg; one longer window instead (ending 3 or 4.75 ms after the onset): 0.843 and
+0.852. On the horizontal plane (12 azimuths x 4 trials,
 seeds 0-9): mean error 47.1 -> 45.9 deg, left-right accuracy 0.993 with either (0.95-1.0
 per seed: one of the 40 lateral trials on the wrong side already gives 0.975). With the
 product fusion (the windows' maps pooled by their geometric mean, the bins by the product),
