@@ -126,6 +126,7 @@ def tables(out) -> str:
     out = Path(out)
     pinna, ild, loc, det = (_load(out, n) for n in ("pinna.json", "hrtf_ild_ipd.json", "localization.json", "detection.json"))
     lines = _target_lines(loc, det)
+    methods = _methods(loc)
     w, wo = pinna["with_pinna"], pinna["without_pinna"]
     lines += [
         "**Pinna (median plane, left ear).** "
@@ -144,13 +145,13 @@ def tables(out) -> str:
         f"**Localization in simulation** (mean angular error in deg over {loc['directions']} directions, "
         f"{loc['hrtf']}, `{loc['profile']}` models):",
         "",
-        "| signal | f0 (Hz) | " + " | ".join(LABELS[m] for m in _methods(loc)) + " |",
-        "|---|---|" + "---|" * len(_methods(loc)),
+        "| signal | f0 (Hz) | " + " | ".join(LABELS[m] for m in methods) + " |",
+        "|---|---|" + "---|" * len(methods),
     ]
     for row in loc["simulation"]:
         f0 = "-" if row["f0_hz"] is None else f"{row['f0_hz']:.0f}"
-        lines.append(f"| {row['signal']} | {f0} | " + " | ".join(_fmt(row[f"{m}_deg"]) for m in _methods(loc)) + " |")
-    if "ssdenet_sum" in _methods(loc):
+        lines.append(f"| {row['signal']} | {f0} | " + " | ".join(_fmt(row[f"{m}_deg"]) for m in methods) + " |")
+    if "ssdenet_sum" in methods:
         lines += ["", FUSION_NOTE]
     room = loc["room"]
     keys = list(room["horizontal_mean_deg"])
