@@ -6,10 +6,6 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test bench clean
 
-# The voice class speaks through Debian's espeak-ng (.ci/run installs it); without it the
-# voices are the formant synthesizer's, and models trained here differ from CI's.
-ESPEAK_CHECK := command -v espeak-ng >/dev/null || echo "warning: espeak-ng is not installed: voices fall back to the formant synthesizer, so the models trained here differ from CI's (apt-get install espeak-ng, as .ci/run does)"
-
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
@@ -23,11 +19,9 @@ $(STAMP): pyproject.toml
 # DEMO_ARGS says otherwise, e.g. make demo DEMO_ARGS="--profile paper --seed 3".
 DEMO_ARGS ?=
 demo: $(STAMP)
-	@$(ESPEAK_CHECK)
 	$(BIN)/acoustic-sim demo --out runs $(DEMO_ARGS)
 
 test: $(STAMP)
-	@$(ESPEAK_CHECK)
 	$(BIN)/pytest -q
 
 bench: $(STAMP)

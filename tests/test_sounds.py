@@ -7,11 +7,11 @@ import pytest
 import soundfile as sf
 from scipy import signal
 
-from acoustic_sim.acoustics import sounds
+from acoustic_sim.acoustics import espeak, sounds
 from acoustic_sim.errors import SoundError
 
 SR = 44100
-HAS_ESPEAK = sounds._find_espeak() is not None
+HAS_ESPEAK = espeak.available()
 
 
 def rng(seed: int = 0) -> np.random.Generator:
@@ -182,11 +182,11 @@ def test_auto_without_espeak_is_the_formant_engine(monkeypatch):
 
 
 def test_broken_espeak_falls_back_with_warning(monkeypatch):
-    monkeypatch.setattr(sounds, "_find_espeak", lambda: "/nonexistent/espeak-ng")
+    monkeypatch.setattr(espeak, "_paths", lambda: ("/nonexistent/libespeak-ng.so", "/nonexistent/data"))
     with pytest.warns(RuntimeWarning, match="formant synthesizer"):
         x = sounds.speech("Hello!", rng(7))
     assert np.all(np.isfinite(x)) and rms(x) == pytest.approx(1.0, abs=1e-12)
-    with pytest.raises(SoundError, match="espeak-ng could not run"):
+    with pytest.raises(SoundError, match="espeak-ng exited with 1"):
         sounds.speech("Hello!", rng(7), engine="espeak")
 
 
@@ -198,6 +198,18 @@ def test_espeak_voice():
     assert band_fraction(x, 80, 6000) > 0.8
     assert np.array_equal(x, sounds.speech("Musashi, over here!", rng(8), engine="espeak"))
     assert not np.array_equal(x[:1000], sounds.speech("Musashi, over here!", rng(9))[:1000])
+
+
+@pytest.mark.skipif(not HAS_ESPEAK, reason="no espeakng-loader wheel for this platform")
+def test_espeak_needs_no_program_and_forgets_what_it_said(monkeypatch):
+    """The voices come from the pip-installed library, not a program on the PATH, and a phrase
+    does not depend on the phrases said before it (the library keeps state within a process)."""
+    monkeypatch.setenv("PATH", "")
+    assert sounds.voice_engine() == espeak.VERSION
+    first = sounds.speech("Hey, Musashi!", rng(10), engine="espeak")
+    for seed in (11, 12):
+        sounds.speech("Over here!", rng(seed), engine="espeak")
+    assert np.array_equal(first, sounds.speech("Hey, Musashi!", rng(10), engine="espeak"))
 
 
 # --------------------------------------------------------------------------- test signals

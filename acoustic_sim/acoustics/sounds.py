@@ -4,8 +4,9 @@ Every signal is a float64 mono 1-D array at ``sample_rate`` (Hz), scaled to an R
 exactly 1.0 over the whole returned signal, so that the renderer's level in dB SPL at 1 m is
 the signal's equivalent continuous level. Loaded WAV files are the exception: they keep
 their recorded scale. Randomness comes only from the ``numpy.random.Generator`` passed in:
-the same seed gives the same samples, bit for bit (on one machine; ``human_voice`` also
-depends on whether ``espeak-ng`` is installed).
+the same seed gives the same samples, bit for bit (``human_voice`` speaks with the espeak-ng
+library that the project's ``espeakng-loader`` dependency bundles, the same on every machine
+that installs it; see :mod:`~acoustic_sim.acoustics.espeak`).
 
 The classes are the ones the paper's MelCNN is trained on (car horn, alarm, ratchet,
 gearshift, key turning, human voice). They are synthesized from small physical models, and
@@ -32,10 +33,10 @@ learn the class and not one waveform:
     A key ring jingling (each key a set of 3-10 kHz ringing modes, struck in clusters),
     optionally the key scraping into the lock, then the ignition lock's click and detent.
 ``human_voice``
-    A short call ("Musashi, over here!") through :func:`speech`: ``espeak-ng`` when it is
-    installed, with a random voice, pitch and speed, else a formant synthesizer (glottal
-    pulses with jitter and a call intonation, cascaded formant resonators, noise bursts
-    for consonants; see the private section at the end of this module).
+    A short call ("Musashi, over here!") through :func:`speech`: the bundled ``espeak-ng``
+    with a random voice, pitch and speed, or where its wheel does not exist a formant
+    synthesizer (glottal pulses with jitter and a call intonation, cascaded formant
+    resonators, noise bursts for consonants; see the private section of this module).
 
 The paper's direction-estimation experiment uses sine, triangle, square and sawtooth waves
 (500, 1000, 2000 Hz) and white noise: :func:`test_signal` makes them band-limited (a sum of
@@ -44,11 +45,8 @@ the harmonics below Nyquist with their Fourier amplitudes), phase 0 and determin
 
 from __future__ import annotations
 
-import io
 import math
 import numbers
-import shutil
-import subprocess
 import warnings
 from dataclasses import dataclass
 from fractions import Fraction
@@ -59,6 +57,7 @@ import numpy as np
 import soundfile as sf
 from scipy import signal
 
+from acoustic_sim.acoustics import espeak
 from acoustic_sim.errors import SoundError
 from acoustic_sim.frames import SAMPLE_RATE
 
@@ -79,7 +78,6 @@ MAX_SECONDS = 600.0
 """Longest signal any generator makes, in s (guards against multi-gigabyte requests)."""
 
 _MIN_RATE, _MAX_RATE = 8000, 384000
-_ESPEAK_TIMEOUT_S = 20.0
 
 
 # --------------------------------------------------------------------------- public API
@@ -222,7 +220,7 @@ def speech(text: str, rng: np.random.Generator, *, sample_rate: int = SAMPLE_RAT
     sample_rate : int, optional
         Sample rate in Hz, 8000-384000 (default 44100).
     engine : {"auto", "espeak", "formant"}, optional
-        ``"auto"`` (default) uses ``espeak-ng`` when it is on the PATH and falls back to
+        ``"auto"`` (default) uses the bundled ``espeak-ng`` when installed and falls back to
         the formant synthesizer, with a ``RuntimeWarning``, if it fails; ``"espeak"``
         raises instead; ``"formant"`` never runs ``espeak-ng``.
 
@@ -638,15 +636,15 @@ _ESPEAK_VOICES = ("m1", "m2", "m3", "m4", "m5", "m6", "m7", "f1", "f2", "f3", "f
                   "linda", "steph", "Annie", "belinda", "benjamin", "max", "paul", "robert")
 
 
-def _find_espeak() -> str | None:
-    return shutil.which("espeak-ng")
+def _find_espeak() -> bool:
+    return espeak.available()
 
 
 def voice_engine() -> str:
-    """The engine that ``engine="auto"`` speaks with on this machine: ``"espeak-ng"`` when it
-    is on the PATH, else ``"formant"``. Models trained on generated speech record it (the
-    voices, and so the trained weights, differ between the two)."""
-    return "espeak-ng" if _find_espeak() is not None else "formant"
+    """The engine that ``engine="auto"`` speaks with on this machine: the bundled espeak-ng
+    (:data:`espeak.VERSION`) when its package is installed, else ``"formant"``. Models trained
+    on generated speech record it (the voices, and so the trained weights, differ)."""
+    return espeak.VERSION if _find_espeak() else "formant"
 
 
 @dataclass(frozen=True)
@@ -670,7 +668,7 @@ def _draw_speaker(rng: np.random.Generator, engine: str) -> _Speaker:
                             breath=rng.uniform(0.02, 0.12), rate=rng.uniform(0.8, 1.25),
                             open_quotient=rng.uniform(0.35, 0.5))
     espeak = None
-    if engine == "espeak" or (engine == "auto" and _find_espeak() is not None):
+    if engine == "espeak" or (engine == "auto" and _find_espeak()):
         lang = ("en", "en-us")[int(rng.integers(2))]
         voice = f"{lang}+{_ESPEAK_VOICES[int(rng.integers(len(_ESPEAK_VOICES)))]}"
         espeak = (voice, int(rng.integers(20, 81)), int(rng.integers(130, 191)))
@@ -695,24 +693,9 @@ def _speak(text: str, speaker: _Speaker, rng: np.random.Generator, sr: int,
 
 
 def _espeak(text: str, voice: str, pitch: int, speed: int, sr: int) -> np.ndarray:
-    exe = _find_espeak()
-    if exe is None:
-        raise SoundError("espeak-ng is not installed (not on PATH)")
-    # Text goes through stdin so that a phrase starting with '-' is not read as an option.
-    cmd = [exe, "--stdout", "--stdin", "-v", voice, "-p", str(pitch), "-s", str(speed)]
-    try:
-        done = subprocess.run(cmd, input=text.encode(), capture_output=True,
-                              timeout=_ESPEAK_TIMEOUT_S, check=False)
-    except (OSError, subprocess.SubprocessError) as exc:
-        raise SoundError(f"espeak-ng could not run ({exc})") from exc
-    if done.returncode != 0:
-        raise SoundError(f"espeak-ng exited with {done.returncode}: "
-                         f"{done.stderr.decode(errors='replace').strip()[:200]}")
-    try:
-        x, file_sr = sf.read(io.BytesIO(done.stdout), dtype="float64", always_2d=True)
-    except (sf.SoundFileError, RuntimeError, ValueError) as exc:
-        raise SoundError(f"espeak-ng wrote no readable WAV ({exc})") from exc
-    x = x.mean(axis=1)
+    if not _find_espeak():
+        raise SoundError("espeak-ng is not installed (the espeakng-loader package is missing)")
+    x, file_sr = espeak.synthesize(text, voice, pitch, speed)
     if x.size == 0 or not np.any(x):
         raise SoundError(f"espeak-ng produced silence for {text!r}")
     ratio = Fraction(sr, int(file_sr))
