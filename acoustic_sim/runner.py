@@ -223,9 +223,9 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
         from policies import make_policy
 
         pol = make_policy(policy, env)
-        from tqdm.auto import tqdm
+        from acoustic_sim.progress import progress_bar
 
-        bar = tqdm(range(episodes), desc=f"{task} / {policy}", disable=not progress, dynamic_ncols=True)
+        bar = progress_bar(range(episodes), desc=f"{task} / {policy}", disable=not progress, dynamic_ncols=True)
         try:
             for i in bar:
                 records.append(run_episode(env, pol, int(seed) + i, episode=i, step_callback=callback))

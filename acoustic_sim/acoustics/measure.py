@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy import signal
-from tqdm import tqdm
+from acoustic_sim.progress import progress_bar
 
 from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.microphone import FULL_SCALE_PA, Microphone
@@ -112,7 +112,7 @@ def measure_hrtf(
     irs = np.zeros((len(vectors), 2, int(taps)))
     fade = np.ones(int(taps))
     fade[-taps // 8 :] = np.hanning(2 * (taps // 8))[taps // 8 :]
-    for i, d in enumerate(tqdm(vectors, desc="measuring HRTF", unit="dir", disable=not progress)):
+    for i, d in enumerate(progress_bar(vectors, desc="measuring HRTF", unit="dir", disable=not progress)):
         az, el = vec_to_sph(d)
         # Turn the head so that the loudspeaker (+x in the room) is at direction d.
         renderer.set_head_pose(head, rotation_zyx(float(az), -float(el)).T)

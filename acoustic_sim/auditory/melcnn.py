@@ -665,7 +665,7 @@ def train(profile: str | Profile = "paper", *, progress: bool = True, examples: 
         In eval mode, with characteristic bins and metadata (training time, data size,
         final loss).
     """
-    from tqdm.auto import tqdm
+    from acoustic_sim.progress import progress_bar
 
     prof = get_profile(profile)
     t0 = time.perf_counter()
@@ -689,7 +689,7 @@ def train(profile: str | Profile = "paper", *, progress: bool = True, examples: 
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=total, eta_min=0.05 * prof.learning_rate)
         shuffle = torch.Generator().manual_seed(prof.seed)
         model.train()
-        bar = tqdm(total=total, desc=f"MelCNN {prof.name}", disable=not progress, dynamic_ncols=True, leave=False)
+        bar = progress_bar(total=total, desc=f"MelCNN {prof.name}", disable=not progress, dynamic_ncols=True, leave=False)
         epoch_loss = float("nan")
         for epoch in range(prof.epochs):
             order = torch.randperm(n, generator=shuffle)

@@ -590,7 +590,7 @@ def _concat(parts: list[SoundExamples], n: int) -> SoundExamples:
 
 
 def _progress(total: int, desc: str, enabled: bool):
-    from tqdm.auto import tqdm
+    from acoustic_sim.progress import progress_bar
 
-    return tqdm(total=total, desc=desc, disable=not enabled, unit="ex" if "example" in desc else "it",
+    return progress_bar(total=total, desc=desc, disable=not enabled, unit="ex" if "example" in desc else "it",
                 dynamic_ncols=True, leave=False)

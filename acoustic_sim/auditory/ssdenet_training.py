@@ -230,7 +230,7 @@ def train_bank(hrtf, grid: DirectionGrid, profile, *, seed: int | None = None, p
 
 def _train(hrtf, grid: DirectionGrid, prof: SSDENetProfile, seed: int, progress: bool,
            stats: dict | None) -> SSDENetBank:
-    from tqdm.auto import tqdm
+    from acoustic_sim.progress import progress_bar
 
     rng = np.random.default_rng(seed)
     gen = torch.Generator().manual_seed(seed)
@@ -249,7 +249,7 @@ def _train(hrtf, grid: DirectionGrid, prof: SSDENetProfile, seed: int, progress:
     steps = math.ceil(n / prof.batch_size)
     opt = torch.optim.Adam(bank.parameters(), lr=prof.learning_rate)
     weights = bank._weights()
-    bar = tqdm(total=prof.epochs * steps, disable=not progress, unit="step", leave=False,
+    bar = progress_bar(total=prof.epochs * steps, disable=not progress, unit="step", leave=False,
                desc=f"SSDENet {prof.name} ({prof.n_bins} bins, H={prof.hidden})")
     epoch_loss = float("nan")
     try:

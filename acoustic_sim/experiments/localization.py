@@ -41,7 +41,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 from scipy import signal as sp_signal
-from tqdm import tqdm
+from acoustic_sim.progress import progress_bar
 
 from acoustic_sim.acoustics import sounds
 from acoustic_sim.acoustics.microphone import Microphone
@@ -120,7 +120,7 @@ def simulation(
     dirs = grid.vectors if directions is None else np.asarray(directions, float)
     rows = []
     total = len(signals) * len(dirs)
-    bar = tqdm(total=total, desc="simulation", unit="src", disable=not progress)
+    bar = progress_bar(total=total, desc="simulation", unit="src", disable=not progress)
     for waveform, f0 in signals:
         x = _signal(waveform, f0, seconds + 2048 / hrtf.sample_rate, rng)
         errors = {m: [] for m in estimators}
@@ -306,7 +306,7 @@ def room(world_hrtf, estimators: Mapping[str, Estimator], *, rng: np.random.Gene
     estimates = {m: {"horizontal": [], "median": []} for m in methods}
     noise = noise_floor(world_hrtf, rng=rng)
     start = int(round(LEAD_S * SAMPLE_RATE))
-    bar = tqdm(total=len(horizontal) + len(median), desc="room", unit="src", disable=not progress)
+    bar = progress_bar(total=len(horizontal) + len(median), desc="room", unit="src", disable=not progress)
     for plane, dirs in (("horizontal", horizontal), ("median", median)):
         for d in dirs:
             audio = render_room_trial(world_hrtf, d, rng=rng)
