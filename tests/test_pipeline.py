@@ -12,7 +12,7 @@ from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.features import ild_ipd
-from acoustic_sim.auditory.frontend import analyze
+from acoustic_sim.auditory.frontend import MAX_ABS_SAMPLE, analyze
 from acoustic_sim.auditory.percept import Percept
 from acoustic_sim.auditory.pipeline import AuditoryPipeline
 from acoustic_sim.auditory.precedence import FirstWavefront
@@ -89,6 +89,27 @@ def test_localize_white_noise_all_methods(pipe, kemar):
         pipe.localize(np.zeros((2, 100)))
     with pytest.raises(ConfigError, match="unknown sound class"):
         pipe.localize(audio, sound="trumpet")
+
+
+def test_a_block_too_loud_to_process_is_refused_and_leaves_the_state_alone(pipe):
+    """A finite but huge block (1e30) once overflowed float32 and every later call failed."""
+    audio = np.random.default_rng(3).standard_normal((2, 44100)) * 0.05
+    half = audio.shape[1] // 2
+    pipe.reset()
+    whole = pipe.process(audio)
+    pipe.reset()
+    first = pipe.process(audio[:, :half])
+    with pytest.raises(ConfigError, match="magnitude 1e.30"):
+        pipe.process(np.full((2, 705), 1e30))
+    later = first + pipe.process(audio[:, half:])
+    assert [p.frame for p in later] == [p.frame for p in whole]
+    for a, b in zip(later, whole):
+        assert np.array_equal(a.probabilities, b.probabilities) and a.detected == b.detected
+    # At the bound itself every percept is still finite.
+    pipe.reset()
+    loud = pipe.process(np.clip(audio * 1e8, -MAX_ABS_SAMPLE, MAX_ABS_SAMPLE))
+    assert all(np.all(np.isfinite(p.probabilities)) for p in loud)
+    assert all(np.all(np.isfinite(d.existence)) for p in loud for d in p.directions.values())
 
 
 def test_noise_power_is_validated(pipe):

@@ -30,6 +30,11 @@ N_FFT = 2048
 N_BINS = N_FFT // 2 + 1
 """Frequency bins per ear: 1025, bin i at i * 44100 / 2048 Hz (21.53 Hz apart)."""
 
+MAX_ABS_SAMPLE = 1e6
+"""Largest magnitude a sample may have, in full-scale units (the ADC clips at 1.0). Far
+beyond it the float32 spectra and the power sums downstream overflow to inf, so a larger
+block is refused before it enters any state."""
+
 
 def bin_frequencies(n_fft: int = N_FFT, sample_rate: int = SAMPLE_RATE) -> np.ndarray:
     """Centre frequency (Hz) of every rFFT bin, shape (n_fft // 2 + 1,)."""
@@ -128,6 +133,10 @@ def _check_audio(audio, what: str = "audio") -> np.ndarray:
     x = x.astype(np.float64, copy=False)
     if not np.all(np.isfinite(x)):
         raise ConfigError(f"{what} contains NaN or inf samples")
+    peak = float(np.max(np.abs(x), initial=0.0))
+    if peak > MAX_ABS_SAMPLE:
+        raise ConfigError(f"{what} has a sample of magnitude {peak:.3g}, beyond {MAX_ABS_SAMPLE:.0e} full scale "
+                          "(digital ear samples, 1.0 = the ADC's full scale)")
     return x
 
 
