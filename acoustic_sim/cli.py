@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import AcousticSimError
+from acoustic_sim.files import check_writable, write_text
 
 
 def _vector(text: str) -> np.ndarray:
@@ -48,8 +49,23 @@ def _finite(text: str) -> float:
     return v
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (the usage is one --help away), as every other error,
+    that names the subcommand even for arguments it does not know (argparse leaves those to
+    the top-level parser)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        if not hasattr(namespace, "_innermost_parser"):  # the innermost subcommand finishes first
+            namespace._innermost_parser = self
+        return namespace, extras
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="acoustic-sim",
         description="A simulated humanoid acoustic testbed: binaural ears with pinnae, rooms, and the "
         "Omura et al. 2022 auditory pipeline.",
@@ -72,12 +88,16 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--listener", type=_vector, default=None, help="head centre X,Y,Z in metres (room frame); default: the room's listening position")
     r.add_argument("--sound", default="white_noise", help="a sound class (car_horn, reverse_alarm, ratchet, gearshift, key_turning, human_voice), white_noise, a WAV file, or 'impulse'")
     r.add_argument("--level", type=_finite, default=70.0, help="source level in dB SPL at 1 m (default 70)")
-    r.add_argument("--azimuth", type=_finite, default=0.0, help="source azimuth in degrees, head frame, left positive (default 0)")
-    r.add_argument("--elevation", type=_finite, default=0.0, help="source elevation in degrees, up positive (default 0)")
+    r.add_argument("--azimuth", type=_finite, default=0.0,
+                   help="source azimuth in degrees, head frame, left positive (default 0); read modulo 360, so a value "
+                   "outside [-180, 180] wraps (190 is -170)")
+    r.add_argument("--elevation", type=_finite, default=0.0,
+                   help="source elevation in degrees, up positive, -90..90 (default 0; outside that range is an error, "
+                   "not wrapped)")
     r.add_argument("--distance", type=_positive, default=1.5, help="source distance from the head centre in metres (default 1.5)")
     r.add_argument("--head-yaw", type=_finite, default=0.0, help="head yaw in degrees in the room (0 faces +x, left positive)")
     r.add_argument("--seconds", type=_positive, default=1.0, help="length of the rendering in seconds (default 1; ignored for impulse)")
-    r.add_argument("--seed", type=int, default=0, help="random seed: same seed, same output bit for bit")
+    r.add_argument("--seed", type=int, default=0, help="random seed, >= 0: same seed, same file byte for byte (default 0)")
     r.add_argument("--out", type=Path, required=True, help="output WAV path")
     r.set_defaults(func=cmd_render)
 
@@ -98,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="length of the measured responses in samples, a gate: reflections arriving later are "
                         "left out (default 512 = 11.6 ms; `eval paper` uses 128, before the first reflection)")
     m.add_argument("--max-directions", type=int, default=None, help="measure only this many directions (evenly spread), for quick runs")
-    m.add_argument("--seed", type=int, default=0, help="random seed")
+    m.add_argument("--seed", type=int, default=0, help="random seed, >= 0 (default 0)")
     m.add_argument("--out", type=Path, required=True, help="output .sofa path")
     m.set_defaults(func=cmd_measure_hrtf)
 
@@ -191,7 +211,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extras = parser.parse_known_args(argv)
+    if extras:
+        args._innermost_parser.error(f"unrecognized arguments: {' '.join(extras)}")
     try:
         return int(args.func(args) or 0)
     except (AcousticSimError, OSError) as err:
@@ -240,10 +262,10 @@ def cmd_bench(args) -> int:
     import importlib
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    check_writable(args.out, what="--out")  # before the benchmark's minutes, not after
     run = importlib.import_module(f"benchmarks.{args.bench_module}").run
     result = run(quick=args.quick)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    write_text(args.out, json.dumps(result, indent=2) + "\n")
     print(json.dumps(result, indent=2))
     return 0
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import check_writable, check_writable_folder
 from acoustic_sim.experiments.tasks import EVAL_SEED, design_seeds_text
 
 HRTF_HELP = ("'kemar' (bundled MIT KEMAR, mirror-symmetric ears), 'musashi' (the robot's ears: KEMAR with the right pinna "
@@ -140,7 +141,32 @@ def _read_wav(path: Path) -> np.ndarray:
     return data.T
 
 
+def _check_wav(path: Path) -> None:
+    """Refuse, before any model is built, a WAV that localize/detect could not use: missing,
+    not a sound file, empty, not 2 channels, or holding NaN or infinite samples (scanned in
+    blocks, so a long file is not held in memory for the check)."""
+    import soundfile as sf
+
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such file" if not path.exists() else f"{path}: not a regular file")
+    try:
+        with sf.SoundFile(path) as f:
+            if f.channels != 2:
+                raise ConfigError(f"{path}: needs 2 channels (left, right), has {f.channels}")
+            if f.frames == 0:
+                raise ConfigError(f"{path}: contains no samples")
+            for block in f.blocks(blocksize=1 << 16, dtype="float32"):
+                if not np.all(np.isfinite(block)):
+                    raise ConfigError(f"{path}: holds NaN or infinite samples")
+    except (RuntimeError, sf.LibsndfileError) as exc:
+        raise ConfigError(f"{path}: not a readable audio file ({str(exc).splitlines()[0]})") from None
+
+
 def cmd_train(args) -> int:
+    if args.seed is not None and args.seed < 0:
+        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    if args.out is not None:
+        check_writable(args.out, what="--out")  # before the training, not after
     if args.model == "ssdenet":
         from acoustic_sim.auditory.ssdenet import train_command
 
@@ -172,6 +198,14 @@ def _pipeline(hrtf: str, profile: str, ssdenet_path: Path | None = None, fusion:
 
 
 def cmd_localize(args) -> int:
+    _check_wav(args.wav)
+    if args.ssdenet is not None and not args.ssdenet.is_file():
+        raise ConfigError(f"--ssdenet {args.ssdenet}: no such file")
+    if args.sound is not None:
+        from acoustic_sim.acoustics.sounds import SOUND_CLASSES
+
+        if args.sound not in SOUND_CLASSES:
+            raise ConfigError(f"--sound: unknown sound class {args.sound!r}; valid: {', '.join(SOUND_CLASSES)}")
     audio = _read_wav(args.wav)
     pipe = _pipeline(args.hrtf, args.profile, args.ssdenet, args.fusion)
     per_frame, overall = pipe.localize(audio, method=args.method, sound=args.sound)
@@ -192,12 +226,13 @@ def cmd_localize(args) -> int:
 
 
 def cmd_detect(args) -> int:
+    _check_wav(args.wav)
+    if not 0.0 < args.threshold < 1.0:
+        raise ConfigError(f"--threshold must be in (0, 1), got {args.threshold}")
     audio = _read_wav(args.wav)
     from acoustic_sim.auditory.melcnn import MelCNN
     from acoustic_sim.auditory.pipeline import detect_recording
 
-    if not 0.0 < args.threshold < 1.0:
-        raise ConfigError(f"--threshold must be in (0, 1), got {args.threshold}")
     cnn = MelCNN.load_or_train(args.profile)
     times, probs, overall = detect_recording(cnn, audio)
     for t, p in zip(times, probs):
@@ -232,6 +267,7 @@ def cmd_eval_tasks(args) -> int:
         raise ConfigError(f"--episodes must be >= 1, got {args.episodes}")
     if args.seed < 0:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    check_writable_folder(args.out, what="--out")
     run_tasks(out=args.out, profile=args.profile, episodes=args.episodes, seed=args.seed, quick=args.quick)
     print(table(args.out))
     print(f"wrote {args.out / 'tasks.json'}, {args.out / 'REPORT.md'}, {args.out / 'tasks.png'} and one episodes.json "

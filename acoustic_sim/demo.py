@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import atomic_path, check_writable_folder, write_text, write_wav
 from acoustic_sim.frames import (FRAME_RATE, SAMPLE_RATE, head_to_body_azimuth, head_to_body_elevation, in_lateral_region,
                                  lateral_deg)
 
@@ -417,9 +418,11 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
                          rotation=90)
     axes[0].set_title(title, fontsize=10)
     axes[3].set_xlim(0.0, t_end)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def _true_tracks(trace: Trace) -> list[tuple[str, dict]]:
@@ -470,6 +473,7 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output folder {str(out)!r} is a file")
+    check_writable_folder(out, what="--out")  # before the models train, not after
     from acoustic_sim.runner import _tasks_module, make_env, run_episode
     from acoustic_sim.viz.episode import EpisodeRecorder
 
@@ -503,13 +507,11 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
              f"{record['outcome'].replace('_', ' ')}")
     figure(trace, moments, out / "demo.png", threshold=threshold, lateral_range_deg=lateral, title=title,
            elevation_deg=elevation)
-    import soundfile as sf
-
     audio = np.concatenate(trace.audio, axis=1) if trace.audio else np.zeros((2, 0), np.float32)
-    sf.write(out / "demo.wav", audio.T, SAMPLE_RATE, subtype="FLOAT")
-    (out / "demo.json").write_text(json.dumps({"task": TASK, "policy": "scripted", "profile": profile, "seed": int(seed),
-                                               "record": record, "moments": moments, "narration": text.splitlines()},
-                                              indent=1) + "\n")
+    write_wav(out / "demo.wav", audio, SAMPLE_RATE)
+    write_text(out / "demo.json", json.dumps({"task": TASK, "policy": "scripted", "profile": profile, "seed": int(seed),
+                                              "record": record, "moments": moments, "narration": text.splitlines()},
+                                             indent=1) + "\n")
     files = ", ".join(str(out / f"demo.{ext}") for ext in ("png", "rrd", "wav", "json"))
     return f"{text}\nwrote {files}\nview the recording with: acoustic-sim play {out / 'demo.rrd'}"
 

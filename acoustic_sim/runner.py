@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import check_writable_folder, write_text
 
 TASK_NAMES = ("reverse-alarm", "parking-brake", "call-response")
 """Task names of the command line."""
@@ -209,7 +210,7 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     if task not in TASK_NAMES:
         raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASK_NAMES)}")
-    out = Path(out)
+    out = check_writable_folder(out, what="--out")  # before the episodes run, not after
     recorder = None
     if rrd is not None:
         from acoustic_sim.viz.episode import EpisodeRecorder
@@ -240,8 +241,7 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
               "records": records}
     if recorder is not None:
         result["rrd"] = str(recorder.path)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "episodes.json").write_text(json.dumps(result, indent=1) + "\n")
+    write_text(out / "episodes.json", json.dumps(result, indent=1) + "\n")
     if progress:
         print(summary_table(result))
     return result

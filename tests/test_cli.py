@@ -56,9 +56,10 @@ def test_render_writes_a_two_channel_float_wav(tmp_path):
     again = tmp_path / "again.wav"
     main(["render", "--hrtf", "kemar", "--room", "car_cabin", "--sound", "white_noise", "--azimuth", "-90",
           "--distance", "0.5", "--seconds", "0.3", "--seed", "3", "--out", str(again)])
-    # Same seed, same samples, bit for bit (libsndfile's PEAK chunk carries a time stamp,
-    # so the files' bytes differ in that chunk only).
-    assert np.array_equal(sf.read(again, dtype="float32")[0], audio)
+    # Same seed, same file, byte for byte (as --help promises): no PEAK chunk, whose time
+    # stamp would differ between the two.
+    assert again.read_bytes() == out.read_bytes()
+    assert b"PEAK" not in out.read_bytes()
 
 
 def test_render_impulse_is_the_brir(tmp_path):
@@ -87,6 +88,24 @@ def test_bad_arguments_end_in_one_line(tmp_path, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.stderr
     assert not (tmp_path / "x.wav").exists()  # nothing half-written
+
+
+def test_render_help_says_how_angles_are_read(capsys):
+    with pytest.raises(SystemExit):
+        main(["render", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "outside [-180, 180] wraps (190 is -170)" in text  # azimuth
+    assert "-90..90 (default 0; outside that range is an error" in text  # elevation
+    assert "same file byte for byte" in text
+
+
+def test_render_azimuth_wraps(tmp_path):
+    """--azimuth 190 is -170: the same file."""
+    paths = [tmp_path / "a.wav", tmp_path / "b.wav"]
+    for az, path in zip(("190", "-170"), paths):
+        assert main(["render", "--hrtf", "spherical", "--sound", "impulse", "--azimuth", az, "--out", str(path)]) == 0
+    a, b = (sf.read(p, dtype="float64")[0] for p in paths)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-6 * np.abs(b).max())  # the last bits of sin/cos may differ
 
 
 def test_argparse_rejects_nonsense_numbers(tmp_path):

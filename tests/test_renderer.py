@@ -158,6 +158,11 @@ def test_errors(kemar):
         r.set_head_pose(room.listener, np.ones((3, 3)))
     with pytest.raises(ConfigError, match="no source named"):
         r.move_source("ghost", room.listener)
+    # Orthonormal but a reflection: it would render a mirrored world (ears swapped).
+    for mirror in (np.diag([1.0, -1.0, 1.0]), -np.eye(3), rotation_zyx(30.0) @ np.diag([1.0, 1.0, -1.0])):
+        with pytest.raises(ConfigError, match="proper rotation"):
+            r.set_head_pose(room.listener, mirror)
+    r.set_head_pose(room.listener, rotation_zyx(30.0, 10.0, -5.0))  # a rotation still passes
     r.add_source("near", np.ones(10), np.asarray(room.listener) + [0.05, 0, 0], level_db=70)
     with pytest.raises(ConfigError, match="inside the head"):
         r.render_block()

@@ -42,7 +42,6 @@ import functools
 import hashlib
 import math
 import os
-import tempfile
 import warnings
 from fractions import Fraction
 from pathlib import Path
@@ -55,6 +54,7 @@ from scipy.spatial import ConvexHull, SphericalVoronoi, cKDTree
 
 from acoustic_sim.acoustics import sofa_io
 from acoustic_sim.errors import ConfigError, HRTFError
+from acoustic_sim.files import atomic_path
 from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, angle_between_deg, sph_to_vec, unit_vectors, vec_to_sph
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets" / "hrtf"
@@ -910,12 +910,9 @@ class HRTF:
         sofa.add_attribute(_SAVED_IDENT_ATTR, self.ident)
         sofa.add_attribute(_SAVED_ONSET_ATTR, repr(self.onset_samples))
         sofa.add_attribute(_SAVED_SCALED_ATTR, _SAVED_SCALED_VALUE)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-            tmp_file = Path(tmp) / "hrtf.sofa"
+        with atomic_path(path) as tmp:
             try:
-                sofar.write_sofa(str(tmp_file), sofa, compression=4)
+                sofar.write_sofa(str(tmp), sofa, compression=4)
             except Exception as exc:
                 raise HRTFError(f"cannot write SOFA file {path}: {exc}") from exc
-            os.replace(tmp_file, path)
         return path

@@ -32,6 +32,7 @@ from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import check_writable
 from acoustic_sim.frames import SAMPLE_RATE, SPEED_OF_SOUND, rotation_zyx, vec_to_sph
 
 PRE_DELAY = 32
@@ -83,14 +84,17 @@ def measure_hrtf(
         raise ConfigError(f"seconds must be 0.1-10, got {seconds}")
     if not 64 <= int(taps) <= 4096:
         raise ConfigError(f"taps must be 64-4096, got {taps}")
+    if max_directions is not None and max_directions < 1:
+        raise ConfigError(f"max-directions must be >= 1, got {max_directions}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
+    check_writable(out, what="--out")
     rng = np.random.default_rng(seed)
     ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
     space = room_preset(room, rt60=rt60)
     grid = DirectionGrid.paper(ears)
     vectors = grid.vectors
     if max_directions is not None:
-        if max_directions < 1:
-            raise ConfigError(f"max-directions must be >= 1, got {max_directions}")
         vectors = vectors[np.linspace(0, len(vectors) - 1, min(max_directions, len(vectors))).round().astype(int)]
 
     head = np.asarray(space.listener, float)
@@ -133,7 +137,6 @@ def measure_hrtf(
         irs, vectors, SAMPLE_RATE, name=out.stem, distance_m=distance_m,
         source=f"acoustic-sim measure-hrtf: {ears.name} in {space.name} at {distance_m} m, seed {seed}",
     )
-    out.parent.mkdir(parents=True, exist_ok=True)
     measured.save_sofa(out)
     return {"out": str(out), "directions": len(vectors), "taps": int(taps), "hrtf": ears.name, "room": space.name,
             "rt60_s": round(space.rt60_s, 3), "distance_m": distance_m}

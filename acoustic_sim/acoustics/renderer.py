@@ -270,11 +270,28 @@ class BinauralRenderer:
 
     # -- scene ----------------------------------------------------------------------------
     def set_head_pose(self, position, rotation) -> None:
-        """Head centre (m, room frame) and orientation (3x3, head to room) for the next block."""
+        """Head centre and orientation for the next block.
+
+        Parameters
+        ----------
+        position : array_like, shape (3,)
+            Head centre in metres, room frame; inside the room.
+        rotation : array_like, shape (3, 3)
+            Head to room, a proper rotation: orthonormal (each row's squared norm within
+            1.1e-5 of 1, rows orthogonal within 1e-6) with determinant +1. A reflection
+            (determinant -1, e.g. ``diag(1, -1, 1)``) is refused: it would render a
+            mirrored world, left and right ears swapped.
+
+        Raises
+        ------
+        ConfigError
+            If ``rotation`` is not a proper rotation or ``position`` is outside the room.
+        """
         r = np.asarray(rotation, float)
         rot = tuple(r.ravel().tolist()) if r.shape == (3, 3) else (np.nan,) * 9
         # R R^T = I within numpy.allclose(atol=1e-6) tolerances, in scalar arithmetic:
-        # this runs every control step (NaN fails every comparison).
+        # this runs every control step (NaN fails every comparison). Orthonormal rows
+        # make the determinant +-1 within ~2e-5, so its sign tells rotation from reflection.
         a, b, c, d, e, f, g, h, i = rot
         if not (
             abs(a * a + b * b + c * c - 1.0) <= 1.1e-5
@@ -285,6 +302,8 @@ class BinauralRenderer:
             and abs(d * g + e * h + f * i) <= 1e-6
         ):
             raise ConfigError(f"head rotation must be a 3x3 rotation matrix, got {r.tolist()}")
+        if a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) <= 0.0:
+            raise ConfigError(f"head rotation must be a proper rotation (determinant +1), got a reflection {r.tolist()}")
         p = np.asarray(position, float)
         if p.shape != (3,) or tuple(p.tolist()) != self._head:  # an unchanged position was checked before
             self.head_position = self.room.check_inside(position, what="head position")

@@ -10,7 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import soundfile as sf
 
 from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.microphone import Microphone
@@ -18,6 +17,7 @@ from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import Room, room_preset
 from acoustic_sim.acoustics import sounds
 from acoustic_sim.errors import ConfigError, SoundError
+from acoustic_sim.files import check_writable, write_wav
 from acoustic_sim.frames import SAMPLE_RATE, rotation_zyx, sph_to_vec
 
 
@@ -41,9 +41,17 @@ def source_signal(sound: str, rng: np.random.Generator, seconds: float) -> np.nd
 
 
 def place_source(listener, head_yaw_deg: float, azimuth_deg: float, elevation_deg: float, distance_m: float) -> np.ndarray:
-    """Room position of a source at a direction and distance in the head frame."""
+    """Room position of a source at a direction and distance in the head frame.
+
+    Any finite azimuth is read modulo 360 deg (190 is -170); an elevation outside
+    [-90, 90] deg is refused rather than wrapped, as it names no direction unambiguously.
+    """
     if not np.isfinite(distance_m) or distance_m <= 0:
         raise ConfigError(f"distance must be positive metres, got {distance_m}")
+    if not np.isfinite(azimuth_deg):
+        raise ConfigError(f"azimuth must be a finite number of degrees, got {azimuth_deg}")
+    if not np.isfinite(elevation_deg) or not -90.0 <= elevation_deg <= 90.0:
+        raise ConfigError(f"elevation must be -90..90 degrees, got {elevation_deg}")
     return np.asarray(listener, float) + rotation_zyx(head_yaw_deg) @ sph_to_vec(azimuth_deg, elevation_deg) * distance_m
 
 
@@ -62,6 +70,9 @@ def render_to_wav(
         raise ConfigError(f"--out must be a .wav path, got {out}")
     if not np.isfinite(seconds) or not 0 < seconds <= 3600:
         raise ConfigError(f"seconds must be 0..3600, got {seconds}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
+    check_writable(out, what="--out")
     rng = np.random.default_rng(seed)
     ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
     space = resolve_room(room, rt60=rt60)
@@ -77,8 +88,7 @@ def render_to_wav(
         renderer.add_source("source", signal, position, level_db=level_db, start=0)
         mic = Microphone(rng=rng)
         audio = mic(renderer.render(seconds))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    sf.write(out, np.asarray(audio, np.float32).T, SAMPLE_RATE, subtype="FLOAT")
+    write_wav(out, audio, SAMPLE_RATE)
     return {
         "out": str(out), "samples": int(audio.shape[1]), "sample_rate": SAMPLE_RATE, "hrtf": ears.name, "room": space.name,
         "rt60_s": round(space.rt60_s, 3) if not space.anechoic else 0.0, "sound": sound,

@@ -26,7 +26,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import secrets
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -34,6 +33,7 @@ from typing import Any
 import torch
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import atomic_path
 
 FORMAT_VERSION = 1
 """Version of the file layout written by :func:`save_checkpoint`."""
@@ -106,18 +106,8 @@ def save_checkpoint(path, state_dict: Mapping[str, torch.Tensor], metadata: Mapp
     tensors = {k: v.detach().to("cpu").contiguous().clone() for k, v in state_dict.items()}
     # A temporary file beside the target (opened with the umask's permissions, unlike
     # mkstemp's 0600, so a shared cache stays readable), then an atomic rename.
-    tmp = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            with open(tmp, "xb") as fh:
-                torch.save({"metadata": text, "state_dict": tensors}, fh)
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise ConfigError(f"cannot write checkpoint {path}: {exc}") from None
+    with atomic_path(path, what="checkpoint") as tmp, open(tmp, "xb") as fh:
+        torch.save({"metadata": text, "state_dict": tensors}, fh)
     return path
 
 

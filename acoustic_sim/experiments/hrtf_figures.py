@@ -42,6 +42,7 @@ from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_FFT, bin_frequencies, frequency_to_bin
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError, HRTFError
+from acoustic_sim.files import atomic_path, write_text
 from acoustic_sim.frames import vec_to_sph
 
 PAPER_FREQUENCIES_HZ = (301.5, 560.0, 990.5, 5706.3, 8548.7, 11994.0)
@@ -100,14 +101,13 @@ def _dumps(obj, indent: int = 0) -> str:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(_dumps(data) + "\n")
-    tmp.replace(path)
+    write_text(path, _dumps(data) + "\n")
 
 
 def _save(fig: Figure, path: Path) -> None:
     FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
 
 
 def _rounded(a, digits: int) -> list:

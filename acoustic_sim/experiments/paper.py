@@ -15,7 +15,6 @@ every key, in a few minutes, for the tests. Numbers from a quick run are not the
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -25,7 +24,9 @@ from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.melcnn import MelCNN, evaluate, report_rng
 from acoustic_sim.auditory.ssdenet import DEFAULT_FUSION, LEAKAGE, SSDENetBank, valid_bins
 from acoustic_sim.directions import DirectionGrid
+from acoustic_sim.errors import ConfigError
 from acoustic_sim.experiments import hrtf_figures, localization
+from acoustic_sim.files import check_writable_folder
 from acoustic_sim.experiments.report import targets as report_targets, write_json, write_report
 
 PAPER_CLAIMS = {
@@ -86,9 +87,12 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     quick : bool
         Small models and fewer directions and sounds (see the module docstring).
     seed : int
-        Seed of every random choice (sources, noise, measurement).
+        Seed of every random choice (sources, noise, measurement), >= 0.
     """
-    out = Path(out)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
+    out = check_writable_folder(out, what="--out")
+    ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)  # a bad file fails before the folder is made
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     profile = "fast" if quick else "paper"  # MelCNN's
@@ -96,7 +100,6 @@ def run_paper(*, out, hrtf="kemar", quick: bool = False, seed: int = 0, progress
     t0 = time.perf_counter()
     timings = {}
 
-    ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
     hrtf_figures.pinna(out, hrtf_with=ears)
     hrtf_figures.hrtf_ild_ipd(out, hrtf=ears)
     timings["hrtf_s"] = time.perf_counter() - t0

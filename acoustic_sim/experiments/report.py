@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from acoustic_sim.errors import ConfigError  # noqa: E402
+from acoustic_sim.files import atomic_path, write_text  # noqa: E402
 
 METHODS = ("ssdenet", "ssdenet_sum", "music", "gcc_phat")
 """The simulation table's methods, as JSON keys (a run from before ``ssdenet_sum`` lacks it)."""
@@ -210,7 +211,8 @@ def localization_figures(out) -> list[str]:
     ax.set_ylim(0, 118)  # room for the legend above the bars near chance
     ax.legend(fontsize=8, ncols=len(methods) + 1, loc="upper right")
     fig.tight_layout()
-    fig.savefig(out / "localization_simulation.png", dpi=110)
+    with atomic_path(out / "localization_simulation.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
     room = loc["room"]
@@ -229,7 +231,8 @@ def localization_figures(out) -> list[str]:
         ax.legend(fontsize=7)
     fig.suptitle(f"Localization in the {room['room']} room")
     fig.tight_layout()
-    fig.savefig(out / "localization_room.png", dpi=110)
+    with atomic_path(out / "localization_room.png") as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return ["localization_simulation.png", "localization_room.png"]
 
@@ -269,7 +272,7 @@ def write_report(out) -> Path:
         *[f"![{f[:-4]}]({f})\n" for f in figures],
     ]
     path = out / "REPORT.md"
-    path.write_text("\n".join(body))
+    write_text(path, "\n".join(body))
     return path
 
 
@@ -289,7 +292,7 @@ def replace_section(readme, begin: str, end: str, section: str) -> bool:
     start, stop = text.index(begin), text.index(end) + len(end)
     new = text[:start] + section + text[stop:]
     if new != text:
-        readme.write_text(new)
+        write_text(readme, new)
     return new != text
 
 
@@ -301,6 +304,4 @@ def update_readme(readme, results_dir, image_prefix: str = "results/paper") -> b
 def write_json(path, data) -> None:
     """Write ``data`` as JSON (no NaN) through a temporary file, so a reader never sees half a file."""
     path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
-    tmp.replace(path)
+    write_text(path, json.dumps(data, indent=1, allow_nan=False) + "\n")

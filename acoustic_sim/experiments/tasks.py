@@ -19,6 +19,7 @@ import json
 from pathlib import Path
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import atomic_path, write_text
 
 POLICIES = ("scripted", "oracle", "blind")
 """The policies compared, in the table's order."""
@@ -102,7 +103,7 @@ def report(out) -> Path:
     out = Path(out)
     figure(out)
     path = out / "REPORT.md"
-    path.write_text("# Task results\n\n" + table(out) + f"\n\n![tasks]({FIGURE})\n")
+    write_text(path, "# Task results\n\n" + table(out) + f"\n\n![tasks]({FIGURE})\n")
     return path
 
 
@@ -153,7 +154,8 @@ def figure(out) -> Path:
                  "of the rates)", fontsize=10)
     fig.tight_layout()
     path = out / FIGURE
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
 

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.files import atomic_path, check_writable
 
 
 def choose_gl_backend() -> str:
@@ -114,6 +115,7 @@ def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Pat
     out = Path(out)
     if out.suffix.lower() != ".png":
         raise ConfigError(f"snapshot writes PNG: the file name must end in .png, got {out}")
+    check_writable(out, what="--out")
     imported_before = "mujoco" in sys.modules
     backend = choose_gl_backend()
     if imported_before and backend == "glfw" and not os.environ.get("DISPLAY"):
@@ -150,6 +152,6 @@ def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Pat
     with renderer:
         renderer.update_scene(data, camera, scene_option=options)
         pixels = renderer.render()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(pixels).save(out)
+    with atomic_path(out) as tmp:
+        Image.fromarray(pixels).save(tmp, format="PNG")
     return out
