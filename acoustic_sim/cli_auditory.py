@@ -42,17 +42,24 @@ def add_parsers(sub) -> None:
         "object per ear frame (t, azimuth_deg, elevation_deg: a running estimate over the last 25 "
         "frames; null where nothing could be estimated), then a last object with \"overall\": true "
         "holding the estimate for the whole file. Directions are in the head frame: azimuth from the "
-        "nose, left positive; elevation up positive.",
+        "nose, left positive; elevation up positive. --method ssdenet (the paper's networks) loads the "
+        "SSDENet bank of --hrtf and the MelCNN (its characteristic bins, for --sound), training them on "
+        "first use; music (HRTF steering vectors) and gcc-phat (interaural time difference, calibrated on "
+        "the HRTF: front half of the horizontal plane only) use the HRTF alone and load or train no model. "
+        "The file is read block by block and the lines are written as it is read: memory does not grow "
+        "with the file's length.",
     )
     loc.add_argument("wav", type=Path, help="2-channel WAV (left, right)")
     loc.add_argument("--hrtf", default="kemar", help=f"the ears the recording was made with: {HRTF_HELP}")
     loc.add_argument("--method", default="ssdenet", choices=("ssdenet", "music", "gcc-phat"), help="localization method (default ssdenet)")
-    loc.add_argument("--profile", default="paper", choices=("paper", "fast"), help="model size (default paper)")
-    loc.add_argument("--ssdenet", type=Path, default=None, help="use this SSDENet checkpoint instead of the cached one")
-    loc.add_argument("--sound", default=None, help="only use the characteristic bins of this sound class")
+    loc.add_argument("--profile", default="paper", choices=("paper", "fast"),
+                     help="model size for --method ssdenet (default paper; music and gcc-phat use no model)")
+    loc.add_argument("--ssdenet", type=Path, default=None,
+                     help="--method ssdenet only: use this SSDENet checkpoint instead of the cached one")
+    loc.add_argument("--sound", default=None, help="--method ssdenet only: use only the characteristic bins of this sound class")
     # Literal, as the SSDENet module (torch) is not imported for --help; a test checks it is ssdenet.FUSIONS.
-    loc.add_argument("--fusion", default="product", choices=("product", "sum"),
-                     help="how SSDENet fuses a frame's bins: product (default: n times their geometric mean, "
+    loc.add_argument("--fusion", default=None, choices=("product", "sum"),
+                     help="--method ssdenet only: how SSDENet fuses a frame's bins: product (default: n times their geometric mean, "
                      "which one confidently wrong bin cannot outvote) or sum (the paper's equation)")
     loc.set_defaults(func=cmd_localize)
 
@@ -61,7 +68,9 @@ def add_parsers(sub) -> None:
         help="which of the six sound classes a 2-channel WAV contains (JSON lines)",
         description="Prints one JSON object per ear frame with t and the fused class probabilities "
         "(MelCNN on the last 25 frames of each ear, weighted by ear volume), then a last object with "
-        "\"overall\": true: per class the largest probability over the file and the detected classes.",
+        "\"overall\": true: per class the largest probability over the file and the detected classes. "
+        "The file is read block by block and the lines are written as it is read: memory does not grow "
+        "with the file's length.",
     )
     det.add_argument("wav", type=Path, help="2-channel WAV (left, right)")
     det.add_argument("--profile", default="paper", choices=("paper", "fast"), help="model size (default paper)")
@@ -120,32 +129,15 @@ def add_parsers(sub) -> None:
     er.set_defaults(func=cmd_eval_readme)
 
 
-def _read_wav(path: Path) -> np.ndarray:
-    import soundfile as sf
-
-    if not path.is_file():
-        raise ConfigError(f"{path}: no such file")
-    try:
-        data, rate = sf.read(path, dtype="float64", always_2d=True)
-    except (RuntimeError, sf.LibsndfileError) as exc:
-        raise ConfigError(f"{path}: not a readable audio file ({exc})") from None
-    if data.shape[1] != 2:
-        raise ConfigError(f"{path}: needs 2 channels (left, right), has {data.shape[1]}")
-    from acoustic_sim.frames import SAMPLE_RATE
-
-    if rate != SAMPLE_RATE:
-        from scipy.signal import resample_poly
-
-        g = np.gcd(int(rate), SAMPLE_RATE)
-        data = resample_poly(data, SAMPLE_RATE // g, int(rate) // g, axis=0)
-    return data.T
-
-
 def _check_wav(path: Path) -> None:
     """Refuse, before any model is built, a WAV that localize/detect could not use: missing,
-    not a sound file, empty, not 2 channels, or holding NaN or infinite samples (scanned in
-    blocks, so a long file is not held in memory for the check)."""
+    not a sound file, not 2 channels, shorter than one ear frame, or holding NaN, infinite or
+    absurdly large samples (a float file is scanned in blocks, so a long file is not held in
+    memory for the check; integer PCM cannot hold such samples)."""
     import soundfile as sf
+
+    from acoustic_sim.auditory.frontend import MAX_ABS_SAMPLE
+    from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
 
     if not path.is_file():
         raise ConfigError(f"{path}: no such file" if not path.exists() else f"{path}: not a regular file")
@@ -155,9 +147,17 @@ def _check_wav(path: Path) -> None:
                 raise ConfigError(f"{path}: needs 2 channels (left, right), has {f.channels}")
             if f.frames == 0:
                 raise ConfigError(f"{path}: contains no samples")
+            if -(-f.frames * SAMPLE_RATE // f.samplerate) < frame_end_sample(1):
+                raise ConfigError(f"{path}: {f.frames} samples at {f.samplerate} Hz are shorter than one ear frame "
+                                  f"({frame_end_sample(1)} samples at {SAMPLE_RATE} Hz)")
+            if f.subtype.startswith("PCM_") or f.subtype in ("ULAW", "ALAW"):
+                return
             for block in f.blocks(blocksize=1 << 16, dtype="float32"):
                 if not np.all(np.isfinite(block)):
                     raise ConfigError(f"{path}: holds NaN or infinite samples")
+                if np.max(np.abs(block)) > MAX_ABS_SAMPLE:
+                    raise ConfigError(f"{path}: holds a sample beyond {MAX_ABS_SAMPLE:.0e} full scale (1.0 = the ADC's "
+                                      "full scale, as render writes)")
     except (RuntimeError, sf.LibsndfileError) as exc:
         raise ConfigError(f"{path}: not a readable audio file ({str(exc).splitlines()[0]})") from None
 
@@ -199,6 +199,12 @@ def _pipeline(hrtf: str, profile: str, ssdenet_path: Path | None = None, fusion:
 
 def cmd_localize(args) -> int:
     _check_wav(args.wav)
+    ssdenet = args.method == "ssdenet"
+    if not ssdenet:
+        # MUSIC and GCC-PHAT use the HRTF alone: these options would be ignored.
+        for flag, value in (("--ssdenet", args.ssdenet), ("--sound", args.sound), ("--fusion", args.fusion)):
+            if value is not None:
+                raise ConfigError(f"{flag} applies to --method ssdenet only, not {args.method}")
     if args.ssdenet is not None and not args.ssdenet.is_file():
         raise ConfigError(f"--ssdenet {args.ssdenet}: no such file")
     if args.sound is not None:
@@ -206,18 +212,30 @@ def cmd_localize(args) -> int:
 
         if args.sound not in SOUND_CLASSES:
             raise ConfigError(f"--sound: unknown sound class {args.sound!r}; valid: {', '.join(SOUND_CLASSES)}")
-    audio = _read_wav(args.wav)
-    pipe = _pipeline(args.hrtf, args.profile, args.ssdenet, args.fusion)
-    per_frame, overall = pipe.localize(audio, method=args.method, sound=args.sound)
+    from acoustic_sim.auditory.features import MEL_FRAMES
+    from acoustic_sim.auditory.recording import BaselineTrack, SSDENetTrack, frame_chunks, wav_blocks
+
+    fusion = args.fusion or "product"
+    if ssdenet:
+        track = SSDENetTrack(_pipeline(args.hrtf, args.profile, args.ssdenet, fusion), sound=args.sound,
+                             window=MEL_FRAMES)
+    else:
+        from acoustic_sim.acoustics.hrtf import HRTF
+        from acoustic_sim.directions import DirectionGrid
+
+        ears = HRTF.load(args.hrtf)
+        track = BaselineTrack(args.method, ears, DirectionGrid.paper(ears), window=MEL_FRAMES)
     out = sys.stdout
-    for t, est in per_frame:
-        row = {"t": round(t, 6), "azimuth_deg": None, "elevation_deg": None}
-        if est is not None:
-            row.update(azimuth_deg=round(est.azimuth_deg, 2), elevation_deg=round(est.elevation_deg, 2))
-        out.write(json.dumps(row) + "\n")
-    last = {"overall": True, "method": args.method, "azimuth_deg": None, "elevation_deg": None, "frames": len(per_frame)}
-    if args.method == "ssdenet":
-        last["fusion"] = args.fusion
+    for frames in frame_chunks(wav_blocks(args.wav)):  # rows are written as the file is read
+        for t, est in track.push(frames):
+            row = {"t": round(t, 6), "azimuth_deg": None, "elevation_deg": None}
+            if est is not None:
+                row.update(azimuth_deg=round(est.azimuth_deg, 2), elevation_deg=round(est.elevation_deg, 2))
+            out.write(json.dumps(row) + "\n")
+    overall = track.overall()
+    last = {"overall": True, "method": args.method, "azimuth_deg": None, "elevation_deg": None, "frames": track.frames}
+    if ssdenet:
+        last["fusion"] = fusion
     if overall is not None:
         last.update(azimuth_deg=round(overall.azimuth_deg, 2), elevation_deg=round(overall.elevation_deg, 2),
                     confidence=round(overall.confidence, 4))
@@ -229,14 +247,16 @@ def cmd_detect(args) -> int:
     _check_wav(args.wav)
     if not 0.0 < args.threshold < 1.0:
         raise ConfigError(f"--threshold must be in (0, 1), got {args.threshold}")
-    audio = _read_wav(args.wav)
     from acoustic_sim.auditory.melcnn import MelCNN
-    from acoustic_sim.auditory.pipeline import detect_recording
+    from acoustic_sim.auditory.recording import DetectTrack, frame_chunks, wav_blocks
 
     cnn = MelCNN.load_or_train(args.profile)
-    times, probs, overall = detect_recording(cnn, audio)
-    for t, p in zip(times, probs):
-        sys.stdout.write(json.dumps({"t": round(float(t), 6), **{c: round(float(v), 4) for c, v in zip(cnn.classes, p)}}) + "\n")
+    track = DetectTrack(cnn)
+    for frames in frame_chunks(wav_blocks(args.wav)):  # rows are written as the file is read
+        times, probs = track.push(frames)
+        for t, p in zip(times, probs):
+            sys.stdout.write(json.dumps({"t": round(float(t), 6), **{c: round(float(v), 4) for c, v in zip(cnn.classes, p)}}) + "\n")
+    overall = track.overall()
     detected = [c for c, v in zip(cnn.classes, overall) if v >= args.threshold]
     sys.stdout.write(json.dumps({"overall": True, **{c: round(float(v), 4) for c, v in zip(cnn.classes, overall)},
                                  "detected": detected, "threshold": args.threshold}) + "\n")

@@ -63,6 +63,10 @@ def bad(tmp_path_factory):
     nan[1000, 0] = np.nan
     sf.write(d / "nan.wav", nan, 44100, subtype="FLOAT")
     sf.write(d / "silent.wav", np.zeros((4410, 2), np.float32), 44100, subtype="FLOAT")
+    sf.write(d / "short.wav", np.zeros((100, 2), np.float32), 44100, subtype="FLOAT")
+    loud = rng.standard_normal((4410, 2)).astype(np.float32) * 0.1
+    loud[2000, 1] = 1e7
+    sf.write(d / "loud.wav", loud, 44100, subtype="FLOAT")
     (d / "empty.sofa").write_bytes(b"")
     (d / "text.sofa").write_text("not a SOFA file\n")
     (d / "wav.sofa").write_bytes((d / "mono.wav").read_bytes())
@@ -150,6 +154,8 @@ WAV_IN = [
     ("wav-not-audio", "{bad}/text.wav"),
     ("wav-mono", "{bad}/mono.wav"),
     ("wav-nan-samples", "{bad}/nan.wav"),
+    ("wav-shorter-than-a-frame", "{bad}/short.wav"),
+    ("wav-absurd-sample", "{bad}/loud.wav"),
 ]
 LOCALIZE = WAV_IN + [
     ("method-unknown", "{bad}/silent.wav --method beamformer"),
@@ -158,6 +164,9 @@ LOCALIZE = WAV_IN + [
     ("ssdenet-garbage-file", "{bad}/silent.wav --ssdenet {bad}/garbage.pt"),
     ("hrtf-missing-file", "{bad}/silent.wav --hrtf {bad}/missing.sofa"),
     ("fusion-unknown", "{bad}/silent.wav --fusion max"),
+    ("sound-with-music", "{bad}/silent.wav --method music --sound ratchet"),
+    ("fusion-with-gcc-phat", "{bad}/silent.wav --method gcc-phat --fusion sum"),
+    ("ssdenet-checkpoint-with-music", "{bad}/silent.wav --method music --ssdenet {bad}/garbage.pt"),
 ]
 DETECT = WAV_IN + [
     ("threshold-zero", "{bad}/silent.wav --threshold 0"),

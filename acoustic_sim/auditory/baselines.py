@@ -210,7 +210,14 @@ class Music:
 
     def analyze(self, spectra) -> MusicResult:
         """The full MUSIC result for one recording's spectra, complex (K, 2, n_bins)."""
-        r = self.correlation(spectra)
+        return self.analyze_correlation(self.correlation(spectra))
+
+    def analyze_correlation(self, r) -> MusicResult:
+        """The MUSIC result of correlation matrices R(w) of the analysed bins, complex (B, 2, 2)
+        (:meth:`correlation`; a long recording can sum them over blocks of frames)."""
+        r = np.asarray(r)
+        if r.shape != (self.bins.size, 2, 2) or not np.all(np.isfinite(r)):
+            raise ConfigError(f"correlation must be finite with shape ({self.bins.size}, 2, 2), got {r.shape}")
         # eigh sorts ascending: column 0 is the noise subspace of a single source.
         lam, vec = np.linalg.eigh(r)
         lam = np.clip(lam, 0.0, None)
@@ -360,7 +367,14 @@ class GccPhat:
     def analyze(self, spectra) -> GccPhatResult:
         """The GCC-PHAT result of spectra complex (K, 2, n_bins)."""
         x = _check_spectra(spectra, self.n_bins)
-        cross = np.sum(x[:, 0] * np.conj(x[:, 1]), axis=0)
+        return self.analyze_cross(np.sum(x[:, 0] * np.conj(x[:, 1]), axis=0))
+
+    def analyze_cross(self, cross) -> GccPhatResult:
+        """The GCC-PHAT result of an interaural cross-spectrum ``sum_k X_l X_r^*``, complex
+        (n_bins,) (a long recording can sum it over blocks of frames)."""
+        cross = np.asarray(cross)
+        if cross.shape != (self.n_bins,) or not np.all(np.isfinite(cross)):
+            raise ConfigError(f"cross-spectrum must be finite with shape ({self.n_bins},), got {cross.shape}")
         itd = float(self._peak_lag(cross, self.max_lag_samples))
         if np.isnan(itd):
             return GccPhatResult(0.0, np.array([1.0, 0.0, 0.0]), 0.0, 0.0, silent=True)

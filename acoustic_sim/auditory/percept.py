@@ -55,6 +55,18 @@ class DirectionEstimate:
         }
 
 
+def map_estimate(existence: np.ndarray, grid, n_bins: int, method: str) -> DirectionEstimate:
+    """The estimate of a map over ``grid``'s directions (D,): its argmax, with the confidence
+    ``(max - mean) / max`` (0 for a map without a positive value)."""
+    k = int(np.argmax(existence))
+    top = float(existence[k])
+    confidence = 0.0 if top <= 0 else float(np.clip((top - float(existence.mean())) / top, 0.0, 1.0))
+    return DirectionEstimate(
+        vector=grid.vectors[k].copy(), azimuth_deg=float(grid.azimuth_deg[k]), elevation_deg=float(grid.elevation_deg[k]),
+        existence=np.asarray(existence, np.float32), confidence=confidence, n_bins=int(n_bins), method=method,
+    )
+
+
 @dataclass(frozen=True, kw_only=True)
 class Percept:
     """The pipeline's output for one ear frame.

@@ -95,6 +95,7 @@ from acoustic_sim.auditory.features import MEL_FRAMES, MelHistory, ear_volume, i
 from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_frequencies
 from acoustic_sim.auditory.melcnn import MelCNN, fuse_unchecked
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
+from acoustic_sim.auditory.percept import map_estimate as _estimate
 from acoustic_sim.auditory.precedence import FirstWavefront
 from acoustic_sim.auditory.ssdenet import (
     DEFAULT_FUSION,
@@ -143,16 +144,6 @@ def microphone_noise_power(seconds: float = 1.0) -> np.ndarray:
     """
     mic = Microphone(rng=np.random.default_rng(20220101))
     return noise_power_spectrum(analyze(mic(np.zeros((2, int(seconds * SAMPLE_RATE))))).spectra[3:])
-
-
-def _estimate(existence: np.ndarray, grid: DirectionGrid, n_bins: int, method: str) -> DirectionEstimate:
-    k = int(np.argmax(existence))
-    top = float(existence[k])
-    confidence = 0.0 if top <= 0 else float(np.clip((top - float(existence.mean())) / top, 0.0, 1.0))
-    return DirectionEstimate(
-        vector=grid.vectors[k].copy(), azimuth_deg=float(grid.azimuth_deg[k]), elevation_deg=float(grid.elevation_deg[k]),
-        existence=np.asarray(existence, np.float32), confidence=confidence, n_bins=int(n_bins), method=method,
-    )
 
 
 class AuditoryPipeline:

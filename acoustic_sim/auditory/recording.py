@@ -1,0 +1,400 @@
+"""Whole recordings from a file, block by block: what ``acoustic-sim localize`` and ``detect`` run.
+
+A recording is read :data:`BLOCK_SAMPLES` samples at a time (resampled to the pipeline's
+44.1 kHz where the file has another rate, :class:`StreamResampler`), cut into ear frames by
+the streaming front end (:class:`~acoustic_sim.auditory.frontend.EarFrontEnd`, bit for bit
+the frames of :func:`~acoustic_sim.auditory.frontend.analyze`), and the frames are handed on
+in chunks of :data:`CHUNK_FRAMES`. What a command keeps between chunks does not grow with the
+file: the last ``window`` frames (spectra or existence maps) for the running estimates, the
+last 24 mel frames for the MelCNN's patches, and running sums for the overall result. So
+memory is the same for 2 s and for an hour (``docs/notes/streaming.md`` has the numbers).
+
+Agreement with the in-memory functions (:meth:`AuditoryPipeline.localize
+<acoustic_sim.auditory.pipeline.AuditoryPipeline.localize>`,
+:func:`~acoustic_sim.auditory.pipeline.detect_recording`), which hold the whole recording:
+
+- samples: the same (a file at 44.1 kHz is read as is; another rate is resampled by
+  :class:`StreamResampler`, which gives ``scipy.signal.resample_poly``'s output exactly);
+- per frame, detection and MUSIC / GCC-PHAT: each frame's result is computed from the same
+  frames (:data:`CHUNK_FRAMES` is the MelCNN batch of :func:`detect_recording`); the tests
+  allow float32 rounding (1e-6);
+- per frame, SSDENet: the running sum of the last ``window`` existence maps is summed
+  directly (float64) where the in-memory path takes differences of a float32 cumulative sum
+  over the whole recording, which loses digits as the recording grows (at an hour the sum is
+  ~10^7 times a frame's map, and float32 keeps ~7 digits); the two agree to float32
+  rounding on short recordings;
+- overall: sums over all frames (maps, correlation matrices, cross-spectra) are accumulated
+  per chunk in float64 / complex128 instead of in one float32 sum; they agree to float32
+  rounding (tests: 1e-5 relative).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from math import gcd
+from pathlib import Path
+
+import numpy as np
+
+from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, Frames
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.frames import SAMPLE_RATE
+
+BLOCK_SAMPLES = 1 << 16
+"""Samples (per channel) read from the file at a time: 1.5 s at 44.1 kHz, 1 MB as float64."""
+
+CHUNK_FRAMES = 256
+"""Ear frames handed on at a time (4.1 s; 4 MB of spectra): the MelCNN's batch."""
+
+
+DETECT_BATCH = 64
+"""Frames whose patches the MelCNN runs on at once (both ears: 128 patches). The paper model's
+first convolution holds 0.44 MB a patch: 256 frames took 220 MB more peak memory than 64."""
+
+
+class StreamResampler:
+    """``scipy.signal.resample_poly`` of a long signal, pushed in blocks.
+
+    The output is exactly that of ``resample_poly(x, up, down, axis=0)`` on the whole signal
+    (the same filter, the same arithmetic: each output sample is computed by
+    ``scipy.signal.upfirdn`` from the same input samples in the same order), while holding
+    only the input samples that later outputs still need (about the filter's length over
+    ``up``, plus ``down``).
+
+    Parameters
+    ----------
+    rate_in, rate_out : int
+        Sample rates (Hz) of the input and the output.
+    n_in : int
+        Total input samples (the output length, and the filter's tail padding, depend on it).
+    """
+
+    def __init__(self, rate_in: int, rate_out: int, n_in: int) -> None:
+        from scipy.signal import firwin
+        from scipy.signal._upfirdn import _output_len
+
+        if rate_in <= 0 or rate_out <= 0 or n_in < 0:
+            raise ConfigError(f"resampling needs positive rates and n_in >= 0, got {rate_in}, {rate_out}, {n_in}")
+        g = gcd(int(rate_out), int(rate_in))
+        self.up, self.down = int(rate_out) // g, int(rate_in) // g
+        up, down = self.up, self.down
+        self.n_in = int(n_in)
+        self.n_out = -(-self.n_in * up // down)
+        # The filter of resample_poly (scipy 1.17, signal/_signaltools.py), default window.
+        max_rate = max(up, down)
+        half_len = 10 * max_rate
+        h = firwin(2 * half_len + 1, 1.0 / max_rate, window=("kaiser", 5.0)).astype(np.float64)
+        h *= up
+        n_pre_pad = down - half_len % down
+        n_post_pad = 0
+        self.n_pre_remove = (half_len + n_pre_pad) // down
+        while _output_len(h.shape[0] + n_pre_pad + n_post_pad, self.n_in, up, down) < self.n_out + self.n_pre_remove:
+            n_post_pad += 1
+        self.h = np.concatenate([np.zeros(n_pre_pad), h, np.zeros(n_post_pad)])
+        self._buffer = np.zeros((0, 2))  # input samples [start, start + len)
+        self._start = 0  # a multiple of down, so that a chunk's outputs fall on the whole signal's
+        self._seen = 0  # input samples pushed
+        self._next = 0  # next upfirdn output index M to hand out (before n_pre_remove is dropped)
+
+    def push(self, block: np.ndarray) -> np.ndarray:
+        """Append input samples (n, 2); returns the output samples (m, 2) they complete."""
+        from scipy.signal import upfirdn
+
+        block = np.asarray(block, np.float64)
+        if block.ndim != 2 or block.shape[1] != 2:
+            raise ConfigError(f"resampler blocks must have shape (n, 2), got {block.shape}")
+        self._seen += block.shape[0]
+        if self._seen > self.n_in:
+            raise ConfigError(f"more input than announced ({self._seen} > {self.n_in} samples)")
+        self._buffer = np.concatenate([self._buffer, block]) if self._buffer.size else block
+        end = self._start + self._buffer.shape[0]
+        last = self.n_pre_remove + self.n_out  # upfirdn outputs [n_pre_remove, last) are kept
+        up, down, taps = self.up, self.down, self.h.size
+        if end == self.n_in:  # the end: outputs may use the (zero) samples after it, as in the whole signal
+            m_hi = last
+        else:  # output M uses inputs i with M*down - taps < i*up <= M*down: all of them must have arrived
+            m_hi = min(last, (end * up - 1) // down + 1)
+        if m_hi <= self._next:
+            return np.zeros((0, 2))
+        y = upfirdn(self.h, self._buffer, up, down, axis=0, mode="constant", cval=0)
+        offset = self._start * up // down  # chunk output 0 is whole-signal output `offset`
+        out = y[self._next - offset : m_hi - offset]
+        lo = max(self._next, self.n_pre_remove)  # drop the filter's delay at the start
+        out = out[lo - self._next :]
+        self._next = m_hi
+        # Keep what output m_hi onwards needs: inputs from ceil((m_hi*down - taps + 1) / up),
+        # from a multiple of down.
+        need = max(0, -(-(m_hi * down - taps + 1) // up))
+        start = min(need, end) // down * down
+        if start > self._start:
+            self._buffer = self._buffer[start - self._start :].copy()
+            self._start = start
+        return out
+
+
+def wav_info(path: Path):
+    """``soundfile.info`` of ``path``, its errors as ConfigError."""
+    import soundfile as sf
+
+    try:
+        return sf.info(str(path))
+    except (RuntimeError, sf.LibsndfileError) as exc:
+        raise ConfigError(f"{path}: not a readable audio file ({str(exc).splitlines()[0]})") from None
+
+
+def wav_blocks(path: Path, *, block: int = BLOCK_SAMPLES) -> Iterator[np.ndarray]:
+    """The samples of a 2-channel sound file at the pipeline's rate, (2, n) float64 blocks.
+
+    At most ``block`` samples per channel are read from the file at a time (and a block
+    holds at most about ``block * 44100 / rate`` samples); a file at another rate than
+    44.1 kHz is resampled as ``scipy.signal.resample_poly`` would resample the whole file
+    (:class:`StreamResampler`).
+    """
+    import soundfile as sf
+
+    if block < 1:
+        raise ConfigError(f"block must be >= 1, got {block}")
+    try:
+        with sf.SoundFile(str(path)) as f:
+            if f.channels != 2:
+                raise ConfigError(f"{path}: needs 2 channels (left, right), has {f.channels}")
+            resampler = None if f.samplerate == SAMPLE_RATE else StreamResampler(f.samplerate, SAMPLE_RATE, f.frames)
+            while True:
+                data = f.read(block, dtype="float64", always_2d=True)
+                if data.shape[0] == 0:
+                    break
+                if resampler is not None:
+                    data = resampler.push(data)
+                if data.shape[0]:
+                    yield data.T
+    except (RuntimeError, sf.LibsndfileError) as exc:
+        raise ConfigError(f"{path}: not a readable audio file ({str(exc).splitlines()[0]})") from None
+
+
+def frame_chunks(blocks: Iterable[np.ndarray], *, chunk: int = CHUNK_FRAMES) -> Iterator[Frames]:
+    """Ear frames of a stream of (2, n) sample blocks, ``chunk`` frames at a time (the last
+    chunk may be shorter). Frame k is the frame of the whole recording's
+    :func:`~acoustic_sim.auditory.frontend.analyze`, bit for bit."""
+    if chunk < 1:
+        raise ConfigError(f"chunk must be >= 1, got {chunk}")
+    frontend = EarFrontEnd()
+    pending: list[Frames] = []
+    held = 0
+    for block in blocks:
+        frames = frontend.push(block)
+        if len(frames):
+            pending.append(frames)
+            held += len(frames)
+        while held >= chunk:
+            joined = _join(pending)
+            yield Frames(joined.index[:chunk], joined.time_s[:chunk], joined.spectra[:chunk])
+            rest = Frames(joined.index[chunk:], joined.time_s[chunk:], joined.spectra[chunk:].copy())
+            pending, held = ([rest] if len(rest) else []), len(rest)
+    if held:
+        yield _join(pending)
+
+
+def _join(parts: list[Frames]) -> Frames:
+    if len(parts) == 1:
+        return parts[0]
+    return Frames(np.concatenate([p.index for p in parts]), np.concatenate([p.time_s for p in parts]),
+                  np.concatenate([p.spectra for p in parts]))
+
+
+def _window_sums(history: np.ndarray, new: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of ``new`` (K, ...), the float64 sum of it and the ``window - 1`` rows before it,
+    given the ``window - 1`` rows before ``new`` (``history``, zeros before the recording).
+    Returns the sums (K, ...) and the new history."""
+    rows = np.concatenate([history, new])
+    csum = np.cumsum(rows, axis=0, dtype=np.float64)
+    lead = np.zeros((1,) + rows.shape[1:])
+    csum = np.concatenate([lead, csum])
+    k = new.shape[0]
+    sums = csum[window : window + k] - csum[:k]
+    return sums, rows[rows.shape[0] - (window - 1) :].copy() if window > 1 else rows[:0].copy()
+
+
+class SSDENetTrack:
+    """``AuditoryPipeline.localize(method="ssdenet")`` of a recording pushed in chunks of frames.
+
+    Keeps the last ``window - 1`` frames' maps and the sum of all of them. ``pipe`` is an
+    :class:`~acoustic_sim.auditory.pipeline.AuditoryPipeline` (its SSDENet bank, validity
+    test and fusion; MelCNN's characteristic bins when ``sound`` is given).
+    """
+
+    method = "ssdenet"
+
+    def __init__(self, pipe, *, sound: str | None = None, window: int = 25) -> None:
+        if window < 1:
+            raise ConfigError(f"window must be >= 1, got {window}")
+        self.pipe = pipe
+        self.window = int(window)
+        self.mask = None
+        if sound is not None:
+            if sound not in pipe.classes:
+                raise ConfigError(f"unknown sound class {sound!r}; valid: {', '.join(pipe.classes)}")
+            self.mask = np.zeros(N_BINS, bool)
+            self.mask[pipe.ssdenet.bins[pipe._class_masks[pipe.classes.index(sound)]]] = True
+        d = len(pipe.grid)
+        self._maps = np.zeros((self.window - 1, d), np.float32)
+        self._counts = np.zeros(self.window - 1, np.int64)
+        self._total = np.zeros(d)
+        self._total_bins = 0
+        self.frames = 0
+
+    def push(self, frames: Frames) -> list:
+        """(time_s, DirectionEstimate or None) of each frame: the estimate of its last ``window`` frames."""
+        from acoustic_sim.auditory.percept import map_estimate
+
+        x = frames.spectra
+        valid = self.pipe._valid(x)
+        if self.mask is not None:
+            valid = valid & self.mask
+        maps, n_valid = self.pipe.ssdenet.frame_maps(x, valid, self.pipe.fusion)
+        sums, self._maps = _window_sums(self._maps, maps, self.window)
+        counts, self._counts = _window_sums(self._counts, n_valid, self.window)
+        self._total += maps.sum(axis=0, dtype=np.float64)
+        self._total_bins += int(n_valid.sum())
+        self.frames += len(frames)
+        grid = self.pipe.grid
+        return [(float(t), map_estimate(m.astype(np.float32), grid, int(nb), self.method) if nb else None)
+                for t, m, nb in zip(frames.time_s, sums, np.rint(counts).astype(np.int64))]
+
+    def overall(self):
+        """The estimate from all frames together; None when no bin was ever valid."""
+        from acoustic_sim.auditory.percept import map_estimate
+
+        if not self._total_bins:
+            return None
+        return map_estimate(self._total.astype(np.float32), self.pipe.grid, self._total_bins, self.method)
+
+
+class BaselineTrack:
+    """``AuditoryPipeline.localize(method="music" | "gcc-phat")`` of a recording pushed in chunks.
+
+    Needs only the HRTF (MUSIC's steering vectors, GCC-PHAT's lag calibration) and the grid:
+    no learned model. Keeps the last ``window - 1`` frames' spectra and, for the overall
+    estimate, the sum of the correlation matrices (MUSIC) or of the cross-spectrum (GCC-PHAT).
+    """
+
+    def __init__(self, method: str, hrtf, grid, *, window: int = 25) -> None:
+        from acoustic_sim.auditory.baselines import GccPhat, Music
+
+        if method not in ("music", "gcc-phat"):
+            raise ConfigError(f"unknown baseline method {method!r}; valid: music, gcc-phat")
+        if window < 1:
+            raise ConfigError(f"window must be >= 1, got {window}")
+        self.method = method
+        self.grid = grid
+        self.window = int(window)
+        self.music = Music(hrtf, grid) if method == "music" else None
+        self.gcc = GccPhat(hrtf) if method == "gcc-phat" else None
+        self._tail = np.zeros((0, 2, N_BINS), np.complex64)
+        self._sum = None
+        self.frames = 0
+
+    def _estimate(self, x: np.ndarray):
+        if self.music is not None:
+            return self._music_estimate(self.music.analyze(x))
+        return self._gcc_estimate(self.gcc.analyze(x))
+
+    def _music_estimate(self, r):
+        from acoustic_sim.auditory.percept import map_estimate
+
+        if r.silent:
+            return None
+        return map_estimate(np.asarray(r.spectrum, np.float32), self.grid, len(r.bins), "music")
+
+    @staticmethod
+    def _gcc_estimate(r):
+        from acoustic_sim.auditory.percept import DirectionEstimate
+        from acoustic_sim.frames import sph_to_vec, vec_to_sph
+
+        if r.silent:
+            return None
+        v = sph_to_vec(r.azimuth_deg, 0.0)
+        az, el = vec_to_sph(v)
+        return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el),
+                                 existence=np.zeros(0, np.float32), confidence=1.0, n_bins=0, method="gcc-phat")
+
+    def push(self, frames: Frames) -> list:
+        """(time_s, DirectionEstimate or None) of each frame, from its last ``window`` frames."""
+        x = frames.spectra
+        rows = np.concatenate([self._tail, x])
+        lead = self._tail.shape[0]
+        out = []
+        for j, t in enumerate(frames.time_s):
+            i = lead + j
+            out.append((float(t), self._estimate(rows[max(0, i - self.window + 1) : i + 1])))
+        self._tail = rows[max(0, rows.shape[0] - (self.window - 1)) :].copy() if self.window > 1 else rows[:0].copy()
+        if self.music is not None:
+            xb = x[:, :, self.music.bins].astype(np.complex128)
+            part = np.einsum("kib,kjb->bij", xb, np.conj(xb))
+        else:
+            part = np.sum(x[:, 0].astype(np.complex128) * np.conj(x[:, 1].astype(np.complex128)), axis=0)
+        self._sum = part if self._sum is None else self._sum + part
+        self.frames += len(frames)
+        return out
+
+    def overall(self):
+        """The estimate from all frames together; None for silence (or no frame)."""
+        if self._sum is None:
+            return None
+        if self.music is not None:
+            # In the in-memory path's precision (complex64), summed more precisely.
+            return self._music_estimate(self.music.analyze_correlation((self._sum / self.frames).astype(np.complex64)))
+        return self._gcc_estimate(self.gcc.analyze_cross(self._sum.astype(np.complex64)))
+
+
+class DetectTrack:
+    """:func:`~acoustic_sim.auditory.pipeline.detect_recording` of a recording pushed in chunks.
+
+    Keeps the last 24 frames' mel power and ear volumes (a patch is 25 frames) and the
+    running maximum of each class's probability.
+    """
+
+    def __init__(self, melcnn) -> None:
+        from acoustic_sim.auditory.features import MEL_FRAMES, N_MELS
+
+        self.melcnn = melcnn
+        self.classes = tuple(melcnn.classes)
+        self._n = MEL_FRAMES
+        self._mel = np.zeros((MEL_FRAMES - 1, 2, N_MELS), np.float32)
+        self._vol = np.zeros((0, 2))
+        self._max = None
+        self.frames = 0
+
+    def push(self, frames: Frames) -> tuple[np.ndarray, np.ndarray]:
+        """Times (K,) and fused probabilities float32 (K, C) of the frames (the MelCNN runs
+        once on the chunk: push at most :data:`CHUNK_FRAMES` frames at a time)."""
+        from acoustic_sim.auditory.features import ear_volume, mel_power, normalize_log_mel
+
+        x = frames.spectra
+        k = x.shape[0]
+        if k == 0:
+            return frames.time_s, np.zeros((0, len(self.classes)), np.float32)
+        n = self._n
+        padded = np.concatenate([self._mel, mel_power(x)])  # (n - 1 + K, 2, M)
+        win = np.lib.stride_tricks.sliding_window_view(padded, n, axis=0)  # (K, 2, M, n)
+        patches = normalize_log_mel(win.transpose(0, 1, 3, 2))
+        self._mel = padded[-(n - 1) :].copy()
+        vol = ear_volume(x)  # (K, 2)
+        kernel = np.ones(n) / n
+        lead = self._vol.shape[0]
+        joined = np.concatenate([self._vol, vol])
+        # Mean volume over each patch's frames (frames before the start count as silent): the
+        # entries of np.convolve over the whole recording, from the frames they sum.
+        mean = np.stack([np.convolve(joined[:, e], kernel)[lead : lead + k] for e in range(2)], axis=1)
+        self._vol = joined[-(n - 1) :].copy()
+        b = DETECT_BATCH
+        probs = np.concatenate([self.melcnn.detect(patches[i : i + b], mean[i : i + b]) for i in range(0, k, b)])
+        probs = probs.astype(np.float32)
+        self._max = probs.max(axis=0) if self._max is None else np.maximum(self._max, probs.max(axis=0))
+        self.frames += k
+        return frames.time_s, probs
+
+    def overall(self) -> np.ndarray:
+        """float32 (C,): the largest probability of each class over the frames so far."""
+        if self._max is None:
+            raise ConfigError("no frame was pushed")
+        return self._max
