@@ -277,7 +277,9 @@ def _spherical_cached(radius, distance, n_taps, sample_rate, directions_key):
     return hrtf
 
 
-def _load_sofa(path: Path, sample_rate: int, name: str | None = None) -> HRTF:
+def _read_measurements(path: Path):
+    """(sofa, Data.IR (M, 2, N) in the file's receiver order with Data.Delay applied,
+    sample rate, unit directions (M, 3) in the head frame, distances (M,)), all checked."""
     sofa = sofa_io.read_sofa(path)
     convention = str(getattr(sofa, "GLOBAL_SOFAConventions", "") or "")
     if convention != "SimpleFreeFieldHRIR":
@@ -317,16 +319,6 @@ def _load_sofa(path: Path, sample_rate: int, name: str | None = None) -> HRTF:
     if rot is not None:
         xyz = xyz @ rot.T
     directions = xyz / dist[:, None]
-    # Receiver order: receiver 0 is the left ear unless ReceiverPosition says otherwise.
-    rec = getattr(sofa, "ReceiverPosition", None)
-    if rec is not None:
-        rec = np.asarray(rec, dtype=float).reshape(-1, 3)[:2]
-        if rec.shape == (2, 3) and np.all(np.isfinite(rec)):
-            rtype = str(getattr(sofa, "ReceiverPosition_Type", "cartesian")).lower()
-            if rtype == "spherical":
-                rec = sph_to_vec(rec[:, 0], rec[:, 1]) * rec[:, 2:3]
-            if rec[0, 1] < rec[1, 1]:
-                ir = ir[:, ::-1, :]
     delay = getattr(sofa, "Data_Delay", None)
     if delay is not None:
         delay = np.asarray(delay, dtype=float)
@@ -344,6 +336,24 @@ def _load_sofa(path: Path, sample_rate: int, name: str | None = None) -> HRTF:
     if np.any(energy == 0):
         bad = np.argwhere(energy == 0)[0]
         raise HRTFError(f"{path}: the HRIR of measurement {bad[0]}, receiver {bad[1]} is all zeros")
+    return sofa, ir, fs, directions, dist
+
+
+def sofa_left_receiver(path) -> int:
+    """Index (0 or 1) of the left ear's receiver in a SOFA file, as :meth:`HRTF.load` reads
+    it (same checks, warnings and errors): for code that hands the file to another reader."""
+    path = Path(path)
+    sofa, ir, _, directions, _ = _read_measurements(path)
+    return sofa_io.left_receiver(sofa, ir, directions, path)
+
+
+def _load_sofa(path: Path, sample_rate: int, name: str | None = None) -> HRTF:
+    sofa, ir, fs, directions, dist = _read_measurements(path)
+    m = ir.shape[0]
+    # Which receiver is the left ear: ReceiverPosition checked against the data (it is
+    # wrong in some public sets); Data.Delay above is in the file's receiver order.
+    if sofa_io.left_receiver(sofa, ir, directions, path) == 1:
+        ir = ir[:, ::-1, :]
     # Attributes written by HRTF.save_sofa are trusted only for the data they were written with.
     trusted = str(getattr(sofa, _SAVED_IDENT_ATTR, "")) == _ident(fs, directions, ir)
     # Duplicate directions (several azimuths at a pole, several distances) break the
@@ -509,8 +519,11 @@ class HRTF:
             a SOFA file. Files may use any sample rate (resampled with
             :func:`scipy.signal.resample_poly`), any number of directions, spherical or
             cartesian ``SourcePosition``; the receiver with the larger y in
-            ``ReceiverPosition`` is the left ear (receiver 0 when absent); a non-zero
-            ``Data.Delay`` is applied; directions that repeat an earlier one are dropped
+            ``ReceiverPosition`` is the left ear (receiver 0 in files of the ARI SOFA API
+            for Matlab/Octave <= 1.1.0, which mirrored the positions), checked against the
+            data: where the ear facing the most lateral sources is not the louder one, the
+            data win with a warning (see :func:`acoustic_sim.acoustics.sofa_io.left_receiver`);
+            a non-zero ``Data.Delay`` is applied; directions that repeat an earlier one are dropped
             with a warning. Loaded data are scaled to unit diffuse-field power over
             200-400 Hz and padded so that every onset is >= 8 samples into the response.
         sample_rate : int
@@ -519,8 +532,9 @@ class HRTF:
         Raises
         ------
         HRTFError
-            The file does not exist, is not a readable SimpleFreeFieldHRIR SOFA file, or its
-            content is malformed (the message names the file and the problem).
+            The file does not exist, is not a readable SimpleFreeFieldHRIR SOFA file, its
+            content is malformed, or neither ``ReceiverPosition`` nor the data tell which
+            receiver is the left ear (the message names the file and the problem).
         """
         if not isinstance(sample_rate, (int, np.integer)) or sample_rate <= 0:
             raise ConfigError(f"sample_rate must be a positive integer in Hz, got {sample_rate!r}")

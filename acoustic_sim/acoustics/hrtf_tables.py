@@ -234,18 +234,24 @@ class HRTFTables:
             if taps not in self._short:
                 hrir = self._hrtf.hrir
                 fade = np.ones(taps)
-                fade[-taps // 4 :] = np.hanning(2 * (taps // 4))[taps // 4 :]
+                n_fade = taps // 4  # not fade[-taps // 4:]: that is (-taps) // 4, one too many
+                fade[taps - n_fade :] = np.hanning(2 * n_fade)[n_fade:]
                 self._short[taps] = _read_only(fractional_hrir_table(hrir[..., :taps] * fade, FRACTIONAL_PHASES))
             return self._short[taps]
 
     def diffuse_field(self) -> tuple[np.ndarray, np.ndarray]:
         """The HRTF's diffuse-field power (2, 513) and interaural coherence (513,) on a
-        1024-point rFFT grid, read-only (the late tails' spectrum and coherence)."""
+        1024-point rFFT grid, read-only (the late tails' spectrum and coherence).
+
+        HRIRs longer than 1024 samples are transformed on the shortest multiple of 1024
+        points that holds them and every m-th bin is kept: the same frequencies, each value
+        exact there (both quantities are per-bin), identical to a 1024-point rFFT otherwise."""
         with self._lock:
             if self._diffuse is None:
                 h = self._hrtf
-                self._diffuse = (_read_only(np.array(h.diffuse_field_power(1024))),
-                                 _read_only(np.array(h.diffuse_field_coherence(1024))))
+                m = max(1, -(-h.n_taps // 1024))
+                self._diffuse = (_read_only(np.array(h.diffuse_field_power(1024 * m)[:, ::m])),
+                                 _read_only(np.array(h.diffuse_field_coherence(1024 * m)[::m])))
             return self._diffuse
 
     def background_filters(self, sample_rate: int) -> BackgroundFilters:

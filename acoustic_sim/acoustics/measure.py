@@ -115,7 +115,8 @@ def measure_hrtf(
 
     irs = np.zeros((len(vectors), 2, int(taps)))
     fade = np.ones(int(taps))
-    fade[-taps // 8 :] = np.hanning(2 * (taps // 8))[taps // 8 :]
+    n_fade = int(taps) // 8  # not fade[-taps // 8:]: that is (-taps) // 8, one too many
+    fade[int(taps) - n_fade :] = np.hanning(2 * n_fade)[n_fade:]
     for i, d in enumerate(progress_bar(vectors, desc="measuring HRTF", unit="dir", disable=not progress)):
         az, el = vec_to_sph(d)
         # Turn the head so that the loudspeaker (+x in the room) is at direction d.

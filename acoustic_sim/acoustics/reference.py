@@ -22,6 +22,7 @@ import numpy as np
 import pyroomacoustics as pra
 from pyroomacoustics.directivities import MeasuredDirectivityFile, Rotation3D
 
+from acoustic_sim.acoustics.hrtf import sofa_left_receiver
 from acoustic_sim.acoustics.room import Room
 from acoustic_sim.frames import SAMPLE_RATE
 
@@ -35,7 +36,8 @@ class PraBinaural:
     Parameters
     ----------
     sofa_path : path
-        SimpleFreeFieldHRIR SOFA file (receiver 0 = left ear).
+        SimpleFreeFieldHRIR SOFA file; its left ear is the receiver that ``HRTF.load``
+        takes for it (:func:`~acoustic_sim.acoustics.hrtf.sofa_left_receiver`).
     room : Room
         The room (its ``ism_order`` unless ``max_order`` is given).
     """
@@ -50,7 +52,8 @@ class PraBinaural:
             warnings.simplefilter("ignore", UserWarning)
             self.file = MeasuredDirectivityFile(Path(sofa_path), fs=sample_rate)
         front = Rotation3D([0.0], "z", degrees=True)
-        self.ears = [self.file.get_mic_directivity(0, front), self.file.get_mic_directivity(1, front)]
+        left = sofa_left_receiver(Path(sofa_path))
+        self.ears = [self.file.get_mic_directivity(left, front), self.file.get_mic_directivity(1 - left, front)]
 
     def brir(self, source_position, head_position, head_yaw_deg: float = 0.0) -> np.ndarray:
         """Binaural response (2, n) for one pose, exactly as pyroomacoustics computes it."""

@@ -214,6 +214,12 @@ class BinauralRenderer:
     ) -> None:
         if hrtf.sample_rate != sample_rate:
             raise ConfigError(f"HRTF {hrtf.name!r} is at {hrtf.sample_rate} Hz but the renderer runs at {sample_rate} Hz")
+        if _fft_size(hrtf.n_taps + max_block) > HISTORY:  # would fail at the first block
+            raise ConfigError(
+                f"HRTF {hrtf.name!r} has HRIRs of {hrtf.n_taps} samples ({1e3 * hrtf.n_taps / sample_rate:.0f} ms); "
+                f"with blocks of up to {max_block} samples the renderer streams responses (HRIR plus "
+                f"propagation delay) of at most {HISTORY - max_block} samples: use shorter HRIRs or a smaller max_block"
+            )
         if not isinstance(reflection_interval, (int, np.integer)) or reflection_interval < 1:
             raise ConfigError(f"reflection_interval must be an integer >= 1 (blocks), got {reflection_interval!r}")
         if not 0.0 <= reflection_turn_deg <= 180.0:

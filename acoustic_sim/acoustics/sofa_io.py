@@ -4,14 +4,15 @@ sofar reads the file; what it does not check is checked here, and every failure 
 :class:`~acoustic_sim.errors.HRTFError` naming the file: a missing, empty, truncated or
 non-HDF5 file before netCDF4 sees it (:func:`check_container`), a variable that is missing
 or not numeric (:func:`sofa_array`), positions in an unsupported coordinate type
-(:func:`positions_to_cartesian`), and the listener's orientation (:func:`listener_frame`).
-What the responses mean (conventions, delays, normalization) is the HRTF loader's
-(``HRTF.load``).
+(:func:`positions_to_cartesian`), the listener's orientation (:func:`listener_frame`), and
+which receiver is the left ear (:func:`left_receiver`). What the responses mean
+(conventions, delays, normalization) is the HRTF loader's (``HRTF.load``).
 """
 
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 import warnings
 from pathlib import Path
@@ -137,3 +138,160 @@ def listener_frame(sofa, path) -> np.ndarray | None:
     z = z / np.linalg.norm(z)
     rot = np.stack([x, np.cross(z, x), z])
     return None if np.allclose(rot, np.eye(3)) else rot
+
+
+# --------------------------------------------------------------------------------------
+# Which receiver is the left ear
+# --------------------------------------------------------------------------------------
+
+ARI_API_NAME = "ARI SOFA API for Matlab/Octave"
+"""``GLOBAL_APIName`` of the SOFA API whose versions up to :data:`ARI_MIRRORED_UP_TO` can
+store ``ReceiverPosition`` with the ears' y mirrored while receiver 0 is still the left ear."""
+
+ARI_MIRRORED_UP_TO = (1, 1, 0)
+"""Last ``GLOBAL_APIVersion`` (major, minor, patch) of that API with the mirrored positions."""
+
+EAR_LEVEL_MIN_DB = 3.0
+"""Least broadband level difference (dB) between the ears, at a side's most lateral source
+directions, for the data to say which ear faces that side."""
+
+LATERAL_MIN = 0.5
+"""Least |interaural component| (sine of the lateral angle: 30 deg off the median plane) of
+a side's most lateral direction for the data check to use that side."""
+
+LATERAL_SPREAD = 0.1
+"""Directions within this of the most lateral interaural component on a side are its most
+lateral directions (about the 26 deg cone around the interaural axis when it is measured)."""
+
+
+def _parse_version(text) -> tuple[int, int, int] | None:
+    match = re.fullmatch(r"\s*(\d+)\.(\d+)\.(\d+)\s*", str(text or ""))
+    return tuple(int(g) for g in match.groups()) if match else None
+
+
+def ari_mirrored_receivers(sofa) -> bool:
+    """Whether the file was written by the ARI SOFA API for Matlab/Octave up to 1.1.0.
+
+    libmysofa (``src/hrtf/check.c``, ``mysofa_check``) accepts a file whose first receiver
+    has a negative y only if ``APIName`` is :data:`ARI_API_NAME` and ``APIVersion``, read as
+    three integers ``a.b.c``, is at most 1.1.0; it then logs a warning and keeps receiver 0
+    as the left ear. A version that does not parse as three integers does not qualify.
+    """
+    if str(getattr(sofa, "GLOBAL_APIName", "") or "").strip() != ARI_API_NAME:
+        return False
+    version = _parse_version(getattr(sofa, "GLOBAL_APIVersion", None))
+    return version is not None and version <= ARI_MIRRORED_UP_TO
+
+
+def receiver_y(sofa) -> np.ndarray | None:
+    """The interaural (y) coordinate of each of the two receivers, shape (2,), or None when
+    ``ReceiverPosition`` is absent or not two finite positions. Per-measurement positions
+    (``R, C, M``) count only when the two receivers keep their order in every measurement."""
+    rec = getattr(sofa, "ReceiverPosition", None)
+    if rec is None or isinstance(rec, str):
+        return None
+    try:
+        rec = np.asarray(np.ma.filled(np.ma.asarray(rec, dtype=float), np.nan))
+    except (TypeError, ValueError):
+        return None
+    if rec.ndim == 2:
+        rec = rec[:, :, None]
+    if rec.ndim != 3 or rec.shape[:2] != (2, 3) or rec.shape[2] == 0 or not np.all(np.isfinite(rec)):
+        return None
+    rtype = str(getattr(sofa, "ReceiverPosition_Type", "cartesian") or "cartesian").strip().lower()
+    if rtype == "spherical":
+        ang = rec[:, :2]
+        if "rad" in str(getattr(sofa, "ReceiverPosition_Units", "") or "").lower():
+            ang = np.rad2deg(ang)
+        y = np.sin(np.deg2rad(ang[:, 0])) * np.cos(np.deg2rad(ang[:, 1])) * rec[:, 2]  # (2, M)
+    elif rtype == "cartesian":
+        y = rec[:, 1]
+    else:
+        return None
+    order = np.sign(y[0] - y[1])
+    if not np.all(order == order[0]):
+        return None
+    return y[:, 0]
+
+
+def _ears_by_data(ir: np.ndarray, directions: np.ndarray):
+    """(left receiver 0 or 1, or None; why) from the levels at the most lateral directions."""
+    energy = np.sum(np.asarray(ir, dtype=float) ** 2, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        level = 10 * np.log10(energy[:, 0] / energy[:, 1])  # receiver 0 over receiver 1, dB
+    y = np.asarray(directions)[:, 1]
+    sides = []
+    for sign, name in ((1.0, "left"), (-1.0, "right")):
+        lateral = sign * y
+        if lateral.max() < LATERAL_MIN:
+            continue
+        near = lateral >= lateral.max() - LATERAL_SPREAD
+        # For a source on the left, the left ear is the louder: receiver 0 is left if its
+        # level is higher there (sign +1), and if it is lower for sources on the right.
+        sides.append((name, float(sign * np.median(level[near])), int(near.sum())))
+    if not sides:
+        return None, (f"no source direction is {np.degrees(np.arcsin(LATERAL_MIN)):.0f} deg or more off "
+                      "the median plane, so the levels cannot tell the ears apart")
+    said = "; ".join(f"sources on the {n} ({k} directions): receiver 0 is {abs(d):.1f} dB "
+                     f"{'louder' if d * (1 if n == 'left' else -1) > 0 else 'quieter'}" for n, d, k in sides)
+    if any(abs(d) < EAR_LEVEL_MIN_DB for _, d, _ in sides):
+        return None, f"the ears' levels differ by less than {EAR_LEVEL_MIN_DB:g} dB ({said})"
+    votes = {0 if d > 0 else 1 for _, d, _ in sides}
+    if len(votes) > 1:
+        return None, f"the levels contradict each other: one receiver is louder for sources on both sides ({said})"
+    return votes.pop(), said
+
+
+def left_receiver(sofa, ir: np.ndarray, directions: np.ndarray, path) -> int:
+    """Index (0 or 1) of the receiver that is the left ear, checked against the data.
+
+    Parameters
+    ----------
+    sofa : sofar.Sofa
+    ir : numpy.ndarray, shape (M, 2, N)
+        ``Data.IR`` in the file's receiver order; no response is all zeros.
+    directions : numpy.ndarray, shape (M, 3)
+        Unit source directions in the head frame (y toward the left ear).
+    path : path
+        The file, for the messages.
+
+    Two witnesses. The metadata: the receiver with the larger y in ``ReceiverPosition`` is
+    the left ear, except in a file of the ARI SOFA API for Matlab/Octave <= 1.1.0
+    (:func:`ari_mirrored_receivers`), whose positions may be mirrored: there receiver 0 is
+    the left ear, as libmysofa reads it. The data: for the most lateral source directions on
+    each side, the ear facing the source carries the more energy (by at least
+    :data:`EAR_LEVEL_MIN_DB`, on every side measured).
+
+    Agreeing witnesses, or data that cannot tell, leave the metadata's answer, silently
+    (an ARI file whose data confirm receiver 0 = left needs no message: nothing is in
+    doubt). Data that clearly contradict the metadata win, with a warning naming the file.
+    An ARI file with mirrored positions whose data cannot tell keeps receiver 0 = left
+    (libmysofa's reading) with a warning. Without a usable ``ReceiverPosition`` the data
+    decide (a warning if they put the left ear second); if they cannot tell either:
+    :class:`~acoustic_sim.errors.HRTFError`.
+    """
+    y = receiver_y(sofa)
+    by_data, why = _ears_by_data(ir, directions)
+    if y is None or abs(y[0] - y[1]) < 1e-9:
+        meta, meta_says = None, "ReceiverPosition does not tell the ears apart"
+    elif y[0] < y[1] and ari_mirrored_receivers(sofa):
+        meta = 0
+        meta_says = (f"written by the {ARI_API_NAME} {getattr(sofa, 'GLOBAL_APIVersion', '')}, whose "
+                     "ReceiverPosition has the ears' y mirrored: receiver 0 is the left ear")
+        if by_data is None:
+            warnings.warn(f"{path}: {meta_says} (as libmysofa reads it); the data cannot confirm it: {why}",
+                          stacklevel=4)
+            return 0
+    else:
+        meta = 0 if y[0] > y[1] else 1
+        meta_says = f"ReceiverPosition puts receiver {meta} on the left (larger y)"
+    if by_data is None:
+        if meta is None:
+            raise HRTFError(f"{path}: cannot tell which receiver is the left ear: {meta_says}, and {why}")
+        return meta
+    if meta is not None and by_data != meta:
+        warnings.warn(f"{path}: {meta_says}, but the data say receiver {by_data} is the left ear ({why}); "
+                      f"using receiver {by_data} as the left ear", stacklevel=4)
+    elif meta is None and by_data != 0:  # the usual order is left first: say why not here
+        warnings.warn(f"{path}: {meta_says}; the data say receiver 1 is the left ear ({why})", stacklevel=4)
+    return by_data
