@@ -203,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     cli_auditory.add_parsers(sub)
     cli_world.add_parsers(sub)
-    from acoustic_sim import runner
+    from apps import runner
 
     runner.add_parsers(sub)
     return parser
@@ -261,7 +261,6 @@ def cmd_bench_render(args) -> int:
 def cmd_bench(args) -> int:
     import importlib
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     check_writable(args.out, what="--out")  # before the benchmark's minutes, not after
     run = importlib.import_module(f"benchmarks.{args.bench_module}").run
     result = run(quick=args.quick)
@@ -271,7 +270,7 @@ def cmd_bench(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from acoustic_sim.demo import run_demo
+    from apps.demo import run_demo
 
     t0 = time.perf_counter()
     summary = run_demo(out=args.out, seed=args.seed, profile=args.profile)

@@ -14,7 +14,7 @@ import numpy as np
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.files import check_writable, check_writable_folder
-from acoustic_sim.experiments.tasks import EVAL_SEED, design_seeds_text
+from apps.eval_tasks import EVAL_SEED, design_seeds_text
 
 HRTF_HELP = ("'kemar' (bundled MIT KEMAR, mirror-symmetric ears), 'musashi' (the robot's ears: KEMAR with the right pinna "
              "tilted 10 deg, so that the median plane has interaural cues), 'spherical' (rigid sphere, no pinna) or a "
@@ -273,7 +273,7 @@ def cmd_eval_readme(args) -> int:
     changed = update_readme(args.readme, args.results, image_prefix=args.results.as_posix())
     print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.results}")
     if (args.tasks / "tasks.json").is_file():
-        from acoustic_sim.experiments import tasks
+        from apps import eval_tasks as tasks
 
         changed = tasks.update_readme(args.readme, args.tasks, image_prefix=args.tasks.as_posix())
         print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.tasks}")
@@ -281,7 +281,7 @@ def cmd_eval_readme(args) -> int:
 
 
 def cmd_eval_tasks(args) -> int:
-    from acoustic_sim.experiments.tasks import run_tasks, table
+    from apps.eval_tasks import run_tasks, table
 
     if args.episodes is not None and args.episodes < 1:
         raise ConfigError(f"--episodes must be >= 1, got {args.episodes}")

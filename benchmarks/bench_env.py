@@ -22,7 +22,6 @@ import platform
 import statistics
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -32,19 +31,13 @@ TARGETS = {"paper": 62.5, "fast": 300.0}
 TASKS = ("reverse-alarm", "parking-brake", "call-response")
 
 
-def _setup() -> None:
-    root = str(Path(__file__).resolve().parents[1])
-    if root not in sys.path:
-        sys.path.insert(0, root)
-
-
 def _singles(profile: str, steps: int, repeats: int) -> dict:
     """Per task, steps per second of one env over ``repeats`` runs of ``steps`` steps.
 
     The repeats are interleaved across the tasks (task 1, 2, 3, then again), so a slow spell
     of a shared machine lowers every task's figures alike instead of one task's median.
     """
-    from acoustic_sim.runner import make_env
+    from apps.runner import make_env
     from policies import make_policy
 
     envs = {task: make_env(task, profile=profile) for task in TASKS}
@@ -79,8 +72,7 @@ def _singles(profile: str, steps: int, repeats: int) -> dict:
 
 def _make(task: str, profile: str):
     def thunk():
-        _setup()
-        from acoustic_sim.runner import make_env
+        from apps.runner import make_env
 
         return make_env(task, profile=profile)
 
@@ -109,8 +101,7 @@ def _vector(profile: str, steps: int, asynchronous: bool) -> dict:
 
 def run(quick: bool = False) -> dict:
     """Measure; returns the JSON-ready result (``acoustic-sim bench env``)."""
-    _setup()
-    from acoustic_sim.runner import make_env  # noqa: F401  (import check before timing)
+    from apps.runner import make_env  # noqa: F401  (import check before timing)
 
     steps, repeats = (60, 1) if quick else (400, 5)
     result = {

@@ -61,10 +61,9 @@ def _entity_mb(path: Path) -> dict:
 
 def episode_cost(n_episodes: int = 3) -> dict:
     """What recording real task episodes through the runner's hook costs (see the module)."""
-    from acoustic_sim.runner import _tasks_module, make_env, run_episode
+    from apps.runner import make_env, run_episode
     from acoustic_sim.viz.episode import EpisodeRecorder
 
-    _tasks_module()
     from policies import make_policy
 
     env = make_env("reverse-alarm", profile="fast")

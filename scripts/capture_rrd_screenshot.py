@@ -220,7 +220,6 @@ def capture(rrd: Path, out: Path, *, width: int = 1600, height: int = 900, timeo
 
 
 def _sample_recording(path: Path, seconds: float) -> Path:
-    sys.path.insert(0, str(ROOT))
     from acoustic_sim.world.snapshot import choose_gl_backend
 
     choose_gl_backend()

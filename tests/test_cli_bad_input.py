@@ -29,10 +29,10 @@ class WouldBuild(AssertionError):
 @pytest.fixture
 def guard(monkeypatch):
     """Make every model, env, benchmark and experiment fail loudly if a case reaches it."""
-    from acoustic_sim import runner
+    from apps import runner
     from acoustic_sim.auditory import melcnn, ssdenet, ssdenet_training
     from acoustic_sim.experiments import hrtf_figures
-    from acoustic_sim.experiments import tasks as tasks_experiment
+    from apps import eval_tasks as tasks_experiment
 
     def stop(what):
         def raiser(*args, **kwargs):

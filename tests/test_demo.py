@@ -12,7 +12,7 @@ from PIL import Image
 
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.cli import main
-from acoustic_sim.demo import Trace, narrate, run_demo, side_words
+from apps.demo import Trace, narrate, run_demo, side_words
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE
 from acoustic_sim.viz.episode import outcome_words

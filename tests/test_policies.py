@@ -18,16 +18,12 @@ episodes, so a failure here is worth a look at the episode (``acoustic-sim run T
 """
 
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tasks/ and policies/ beside acoustic_sim/
-
-from acoustic_sim import runner
 from acoustic_sim.errors import ConfigError
+from apps import runner
 from policies import POLICIES, make_policy
 
 EPISODES = 20

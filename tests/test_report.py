@@ -90,8 +90,8 @@ TASKS = ROOT / "results" / "tasks"
 def test_readme_task_section_is_the_committed_run():
     import json
 
-    from acoustic_sim.experiments import tasks
-    from acoustic_sim.runner import TASK_NAMES
+    from apps import eval_tasks as tasks
+    from apps.runner import TASK_NAMES
 
     text = (ROOT / "README.md").read_text()
     assert text.count(tasks.BEGIN) == 1 and text.count(tasks.END) == 1
@@ -110,8 +110,8 @@ def test_readme_task_section_is_the_committed_run():
 
 
 def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
-    from acoustic_sim.experiments import tasks
-    from acoustic_sim.runner import TASK_NAMES
+    from apps import eval_tasks as tasks
+    from apps.runner import TASK_NAMES
 
     data = tasks.run_tasks(out=tmp_path, quick=True, episodes=1, progress=False)
     assert data["profile"] == "fast" and data["episodes"] == 1 and data["seed"] == tasks.EVAL_SEED
@@ -149,7 +149,7 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
 def test_task_targets_follow_the_summaries():
     """The task targets table: success, reaction, no false release for scripted; blind's
     false releases must have an interval above 0."""
-    from acoustic_sim.experiments.tasks import targets
+    from apps.eval_tasks import targets
 
     def row(task, policy, success, fr, fr_ci, react):
         return {"task": task, "policy": policy, "success_rate": success, "success_rate_ci95": None,

@@ -8,12 +8,10 @@ import ast
 import inspect
 import re
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tasks/ and policies/ beside acoustic_sim/
 
 import gymnasium as gym
 from gymnasium.utils.env_checker import check_env
@@ -151,8 +149,7 @@ def test_optional_observations_and_rgb_render():
     # A fresh interpreter: MuJoCo's OpenGL backend is fixed when mujoco is first imported, and
     # tasks.base picks an offscreen one (EGL or OSMesa) only if it comes first.
     code = """
-import sys, json
-sys.path.insert(0, sys.argv[1])
+import json
 import numpy as np
 from tasks.call_response import CallResponseEnv
 env = CallResponseEnv(profile="fast", render_mode="rgb_array", spectra_obs=True, image_obs=True, image_size=(48, 64))
@@ -169,8 +166,7 @@ env.close()
     import subprocess
 
     env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
-    root = str(Path(__file__).resolve().parents[1])
-    out = subprocess.run([sys.executable, "-c", code, root], check=True, env=env, timeout=300, capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=300, capture_output=True, text=True)
     r = json.loads(out.stdout.strip().splitlines()[-1])
     assert r["image"][:2] == [[48, 64, 3], "uint8"] and r["image"][2] > 1.0
     assert r["spectra"][0] == [2, 1025] and r["spectra"][1] >= 0 and r["spectra"][2] > 0

@@ -396,10 +396,9 @@ def _seconds(chunks, entity: str) -> list[float]:
 _SAME_EPISODE = r"""
 import json, sys
 import numpy as np
-from acoustic_sim.runner import _tasks_module, make_env, run_episode
+from apps.runner import make_env, run_episode
 from acoustic_sim.viz.episode import EpisodeRecorder
 from acoustic_sim.viz.recorder import RecorderConfig
-_tasks_module()
 from policies import make_policy
 
 def collect(trace):
@@ -517,7 +516,7 @@ def test_run_rrd_records_an_episode_that_reads_back(tmp_path):
 
 
 def test_several_episodes_follow_each_other_in_one_recording(tmp_path):
-    from acoustic_sim.runner import run_episodes
+    from apps.runner import run_episodes
 
     rrd = tmp_path / "two.rrd"
     result = run_episodes("reverse-alarm", "blind", 2, 5, tmp_path, profile="fast", progress=False, rrd=rrd, camera=False)

@@ -1,6 +1,6 @@
 """Task-env episodes into a rerun recording: the episode runner's ``step_callback``.
 
-:class:`EpisodeRecorder` is called by :func:`acoustic_sim.runner.run_episode` after every
+:class:`EpisodeRecorder` is called by :func:`apps.runner.run_episode` after every
 reset and every step, as ``recorder(env, episode, step, obs, reward, terminated, truncated,
 info)``, and logs what the env exposes: the scene's body poses and the eye camera's pose
 (through the env's :class:`~acoustic_sim.world.view.WorldView`), the head pose, the sounds

@@ -4,7 +4,7 @@ For each task (ReverseAlarm, ParkingBrake, CallResponse) and each policy (``scri
 paper's behaviours from the percepts; ``oracle``: the same behaviours from the ground truth,
 the upper bound; ``blind``: the classes without their directions), ``episodes`` seeded
 episodes (episode ``i`` uses seed ``seed + i``, the same seeds for every policy), run by
-:func:`acoustic_sim.runner.run_episodes`. Writes ``DIR/<task>/<policy>/episodes.json`` (every
+:func:`apps.runner.run_episodes`. Writes ``DIR/<task>/<policy>/episodes.json`` (every
 record), ``DIR/tasks.json`` (the summaries, and each target with its result and verdict:
 :func:`targets`), ``DIR/REPORT.md`` (the tables) and
 ``DIR/tasks.png`` (the same as bar charts). The README's "Task results" section is the table
@@ -76,7 +76,7 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
         Few episodes with the fast models (tests).
     """
     from acoustic_sim.experiments.report import write_json
-    from acoustic_sim.runner import TASK_NAMES, run_episodes
+    from apps.runner import TASK_NAMES, run_episodes
 
     if quick:
         profile = "fast"

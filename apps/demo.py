@@ -5,7 +5,7 @@ The robot sits in the car cabin with its left hand on the gearshift
 (:mod:`policies.scripted`) pushes the lever toward R; entering R starts the reverse alarm in
 front of the head; the policy lets go once the alarm is heard *from the front*, while
 distractors (another vehicle's beeper behind or beside, a horn, the radio) try to fool it.
-The episode runs through the episode runner (:func:`acoustic_sim.runner.run_episode`), whose
+The episode runs through the episode runner (:func:`apps.runner.run_episode`), whose
 step hook feeds both the rerun recording and this module's trace.
 
 :func:`run_demo` writes, in ``OUT``:
@@ -474,7 +474,7 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output folder {str(out)!r} is a file")
     check_writable_folder(out, what="--out")  # before the models train, not after
-    from acoustic_sim.runner import _tasks_module, make_env, run_episode
+    from apps.runner import make_env, run_episode
     from acoustic_sim.viz.episode import EpisodeRecorder
 
     recorder = EpisodeRecorder(out / "demo.rrd", first_seed=int(seed), name=f"demo: reverse alarm, seed {int(seed)}")
@@ -482,7 +482,6 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     try:
         env = make_env(TASK, profile=profile)
         try:
-            _tasks_module()
             from policies import make_policy
 
             policy = make_policy("scripted", env)

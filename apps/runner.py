@@ -26,7 +26,6 @@ from __future__ import annotations
 import json
 import math
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -42,23 +41,12 @@ POLICY_NAMES = ("scripted", "oracle", "blind")
 """Policy names of the command line."""
 
 
-def _tasks_module():
-    """The ``tasks`` package (a sibling of ``acoustic_sim`` in the repository)."""
-    root = str(Path(__file__).resolve().parents[1])
-    if root not in sys.path:
-        sys.path.insert(0, root)
-    import tasks
-
-    return tasks
-
-
 def make_env(task: str, *, profile: str = "paper", **kwargs):
     """A task env by its command-line name (``reverse-alarm``, ...), unwrapped."""
     if task not in TASK_NAMES:
         raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASK_NAMES)}")
     import importlib
 
-    _tasks_module()
     module, cls = {
         "reverse-alarm": ("tasks.reverse_alarm", "ReverseAlarmEnv"),
         "parking-brake": ("tasks.parking_brake", "ParkingBrakeEnv"),
@@ -220,7 +208,6 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
     records = []
     try:
         env = make_env(task, profile=profile)
-        _tasks_module()
         from policies import make_policy
 
         pol = make_policy(policy, env)
