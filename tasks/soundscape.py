@@ -30,7 +30,6 @@ their true directions from the head (:meth:`Soundscape.sounding`).
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
@@ -138,10 +137,7 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     level_db : float
         dB SPL at 1 m from ``position``.
     """
-    p = np.asarray(point_room, dtype=float)
-    inside = coupling.frame.entry_point(p, coupling.head_position, coupling.outside_margin_m if margin is None else margin)
-    d = float(np.linalg.norm(p - inside))
-    return inside, level_db - coupling.events.config.transmission_loss_db - 20.0 * math.log10(max(d, 1.0))
+    return coupling.through_body(point_room, level_db, margin=margin)
 
 
 class Soundscape:
