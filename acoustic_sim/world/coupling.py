@@ -24,7 +24,9 @@ sample, several sounds of one emitter overlap, and adding a sound never costs a 
 (which takes tens of milliseconds to set up). The ring holds pressure at 1 m in pascal (the
 source's level is 1 Pa for a unit sample), so each sound carries its own level.
 
-Outside emitters (the car horn) play from where the straight line from their site to the
+Outside emitters (the car horn) play by :meth:`Coupling.through_body`, the one law for sounds
+from beyond the walls (a task's other vehicle follows it too, through
+:class:`~acoustic_sim.world.soundscape.Soundscape`): from where the straight line from their site to the
 head enters the room, ``outside_margin_m`` inside the walls (just inside the windscreen;
 :meth:`RoomFrame.entry_point`), at their level minus the body's transmission loss and minus
 the spreading from the site to that point, ``20 log10(max(d, 1 m) / 1 m)`` dB: the body
