@@ -78,6 +78,8 @@ class StepHearing:
         The pipeline's percept of the ear frame.
     frame_audio : numpy.ndarray, shape (2, n_fft), float64
         The digital samples the front end analysed for the frame (its last ``n_fft``).
+    window : numpy.ndarray, shape (n_fft,)
+        The front end's analysis window.
     """
 
     frame: int
@@ -89,7 +91,6 @@ class StepHearing:
     percept: Percept
     frame_audio: np.ndarray = dataclasses.field(repr=False)
     window: np.ndarray = dataclasses.field(repr=False)
-    """The front end's analysis window (n_fft,)."""
 
     def frame_power(self) -> np.ndarray:
         """|X|^2 (2, 1025) of the ear frame, full-scale units: the windowed rFFT of
