@@ -52,13 +52,12 @@ def load_models(hrtf_name: str, profile: str):
     return ears, grid, bank, cnn
 
 
-@functools.cache
 def microphone_noise_power() -> np.ndarray:
     """The microphone's self-noise power per bin (2, 1025), full-scale units: the floor of
-    the pipeline's noise reference."""
-    from acoustic_sim.auditory.pipeline import microphone_noise_power as power
+    the pipeline's noise reference (:func:`acoustic_sim.loop.microphone_floor`, computed once)."""
+    from acoustic_sim.loop import microphone_floor
 
-    return power()
+    return microphone_floor()
 
 
 def make_pipeline(profile: str = "paper", hrtf: str = "kemar", coverage: float = 0.0, specificity: float = 0.0,

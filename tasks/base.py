@@ -3,12 +3,19 @@
 One environment step is one control step is one ear frame (16 ms, DESIGN.md section 1)::
 
     action (normalized joint targets, grasp, wheels)  ->  actuator targets (MjData.ctrl)
-    Coupling.advance()    8 physics steps of 2 ms, sound events, poses to the renderer
-    Soundscape            the task's sounds placed anywhere (added to the renderer as they start)
-    Coupling.render()     the block of eardrum pressure (2, 705 | 706) Pa
-    Microphone            digital full scale, the ADC's 24 bits
-    AuditoryPipeline      exactly one Percept for the ear frame that ends with the block
+    HearingLoop.step()    acoustic_sim.loop: one StepHearing
+      Coupling.advance()    8 physics steps of 2 ms, sound events, poses to the renderer
+      Soundscape            the task's sounds placed anywhere (added to the renderer as they start)
+      noise reference       ambient noise (measured at warm-up) + the motors' ego-noise now
+      Coupling.render()     the block of eardrum pressure (2, 705 | 706) Pa
+      Microphone            digital full scale, the ADC's 24 bits
+      AuditoryPipeline      exactly one Percept for the ear frame that ends with the block
+    _evaluate()           reward, termination, the task's outcome
     observation           proprioception + the percept (+ audio, spectra, eye image)
+
+The env writes the controls and reads the :class:`~acoustic_sim.loop.StepHearing`; it calls
+neither the renderer nor the pipeline itself, and :meth:`reset` lets the loop listen
+(:meth:`~acoustic_sim.loop.HearingLoop.warm_up`) before the first observation.
 
 The observation never holds ground truth; ``info`` does (true source directions, labels,
 events, the task's outcome), for evaluation and for the ``oracle`` policy only.
@@ -18,8 +25,8 @@ episode seed from it and spawns the generators of the renderer (noise, late tail
 sound events (every sound drawn), the microphone (self-noise) and the task (placements,
 distractor times) from that seed, so the same seed gives the same episode bit for bit.
 
-Sounds at arbitrary places: :meth:`HearingTaskEnv.schedule_sound` (see
-:mod:`tasks.soundscape`); the world's own emitters sound through ``coupling.events``.
+Sounds at arbitrary places: :meth:`HearingTaskEnv.schedule_sound` (the loop's soundscape,
+:mod:`acoustic_sim.world.soundscape`); the world's own emitters sound through ``coupling.events``.
 
 The parts live in their own modules, re-exported here: the action vector
 (:mod:`tasks.actions`), the cabin's taught lever motions (:mod:`tasks.levers`), the shared
@@ -43,17 +50,18 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from acoustic_sim.acoustics.microphone import FULL_SCALE_PA, Microphone
+from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE
+from acoustic_sim.loop import HearingLoop, StepHearing
 from acoustic_sim.world import names, scene
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.egonoise import MotorEgoNoise
 from acoustic_sim.world.view import WorldView
 from tasks import spec
 from tasks.actions import ROBOT_JOINTS, ActionChannel, ActionLayout, action_layout
-from tasks.auditory import PROFILES, TorchThreads, load_hrtf, make_pipeline, microphone_noise_power
+from tasks.auditory import PROFILES, TorchThreads, load_hrtf, make_pipeline
 from tasks.levers import LEVERS, hold_lever, lever_arm_angles, lever_motion, settle
 from tasks.soundscape import Soundscape, TaskSound, outside_placement
 
@@ -120,7 +128,11 @@ class HearingTaskEnv(gym.Env):
     :data:`acoustic_sim.auditory.ssdenet.FUSIONS`): ``"product"``, the default, or the
     paper's ``"sum"``."""
     warmup_s = 0.5
-    """Seconds the ears listen before the episode starts (see :meth:`_warm_up`)."""
+    """Seconds the ears listen before the episode starts, holding the start pose
+    (:meth:`HearingLoop.warm_up <acoustic_sim.loop.HearingLoop.warm_up>`): the ears' history
+    (the 0.4 s log-mel window) fills with the room's own sound, so the first observation does
+    not carry the onset of the background noise (which the detector takes for a sound event),
+    and the loop measures the ambient noise of the pipeline's noise reference."""
     spec_action_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
     """The scene's action table rows after the robot's joints: (idx, channel, range, unit)."""
     spec_action_notes: ClassVar[str] = ""
@@ -157,8 +169,6 @@ class HearingTaskEnv(gym.Env):
         self.audio_obs, self.spectra_obs, self.image_obs = bool(audio_obs), bool(spectra_obs), bool(image_obs)
         self.image_size = (h, w)
         self._threads = TorchThreads(torch_threads)
-        self._noise_reference_of = None  # (ambient power, ego level) the pipeline's noise reference was made from
-        self._ego_unit_spectrum = None  # (ego noise, its unit_power_spectrum for the front end's window)
         self.layout = action_layout(self.scene_name)
         self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows, self.fusion)
         self.ears = load_hrtf(hrtf)
@@ -181,6 +191,10 @@ class HearingTaskEnv(gym.Env):
             obs["image"] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
         self.observation_space = spaces.Dict(obs)
         self.coupling: Coupling | None = None
+        self.hearing: HearingLoop | None = None
+        """The episode's hearing loop (the control step's chain from the world to the percept)."""
+        self.last_hearing: StepHearing | None = None
+        """What the last step heard (None before the first)."""
         self.last_percept = None
         """The Percept of the last step (None before the first)."""
         self.last_audio: np.ndarray | None = None
@@ -242,18 +256,20 @@ class HearingTaskEnv(gym.Env):
         self.coupling.scene_info = info
         self.model, self.data, self.view = model, data, self.coupling.view
         self.microphone = Microphone(rng=np.random.default_rng(mic_ss), sample_rate=self.ears.sample_rate)
-        self.pipeline.reset()
+        self.hearing = HearingLoop(self.coupling, self.microphone, self.pipeline, soundscape=Soundscape(self.coupling),
+                                   threads=self._threads)  # resets the pipeline
         self._act_ids = {c.name: model.actuator(c.target).id for c in self.layout.channels if not c.target.startswith("grasp:")}
         self._joint_ids = list(ROBOT_JOINTS)
-        self.soundscape = Soundscape(self.coupling)
+        self.soundscape = self.hearing.soundscape
         self.events_log: list[dict] = []
         self.steps = 0
         self.step_events: list[dict] = []
         self.outcome = "running"
-        self.last_percept = None
+        self.last_hearing = None
         self.last_audio = None
         self._last_spectra = np.zeros((2, N_BINS), np.float32)
-        self._warm_up()
+        warm = self.hearing.warm_up(self.warmup_s)  # the ears listen, holding the start pose (see warmup_s)
+        self.last_percept = warm.percept if warm is not None else None
         self.start_s = self.coupling.time_s
         self._schedule(task_rng)
         self._scene_renderer = None  # the model changed: renderers are rebuilt on demand
@@ -272,79 +288,22 @@ class HearingTaskEnv(gym.Env):
                 self._apply_special(ch, float(a[i]))
             else:
                 self.data.ctrl[self._act_ids[ch.name]] = ch.from_unit(a[i])
-        c = self.coupling
-        new = self.soundscape.begin_block(c.advance())
+        heard = self.last_hearing = self.hearing.step()
+        new = list(heard.events)
         self.step_events = new  # events that started in this step's block: world events and task sounds
-        self._set_noise_reference()
-        pressure = c.render()
-        self.last_audio = self.microphone(pressure)
-        with self._threads:
-            percepts = self.pipeline.process(self.last_audio)
-        if len(percepts) != 1:
-            raise ConfigError(f"the pipeline returned {len(percepts)} percepts for one control block (expected exactly 1)")
-        self.last_percept = percepts[0]
+        self.last_audio = heard.audio
+        self.last_percept = heard.percept
         self.steps += 1
         if self.spectra_obs:
-            self._last_spectra = self._frame_power().astype(np.float32)
+            self._last_spectra = heard.frame_power().astype(np.float32)
         reward, terminated = self._evaluate()
         truncated = not terminated and self.steps >= self.max_episode_steps
         if truncated and self.outcome == "running":
             self.outcome = "timeout"
-        self.soundscape.end_block()
         obs, info = self._observation(), self._info(new)
         if self.step_callback is not None:
             self.step_callback(self, obs, reward, terminated, truncated, info)
         return obs, float(reward), bool(terminated), bool(truncated), info
-
-    def _warm_up(self) -> None:
-        """Listen for :attr:`warmup_s` before the episode starts, holding the start pose: the
-        ears' history (the 0.4 s log-mel window) fills with the room's own sound, so the first
-        observation does not carry the onset of the background noise (which the detector
-        takes for a sound event)."""
-        c = self.coupling
-        n = round(self.warmup_s * FRAME_RATE)
-        ambient, counted = np.zeros((2, N_BINS)), 0
-        self.ambient_power = microphone_noise_power()
-        self._noise_reference_of = None  # (ambient power, ego level) of the pipeline's reference
-        for k in range(n):
-            self.soundscape.begin_block(c.advance())
-            self._set_noise_reference()
-            with self._threads:
-                percepts = self.pipeline.process(self.microphone(c.render()))
-            self.last_percept = percepts[-1] if percepts else self.last_percept
-            if k >= n // 3:  # frames whose 2048 samples are all audio (the first are partly zeros)
-                ambient += self._frame_power()
-                counted += 1
-        if counted:
-            self.ambient_power = np.maximum(ambient / counted, microphone_noise_power())
-        self.soundscape.forget()
-
-    def _frame_power(self) -> np.ndarray:
-        """|X|^2 (2, 1025) of the ear frame the pipeline analysed last (full-scale units)."""
-        fe = self.pipeline.frontend
-        return np.abs(np.fft.rfft(fe.buffer[:, -fe.n_fft:] * fe.window, axis=-1)) ** 2
-
-    def _set_noise_reference(self) -> None:
-        """The pipeline's noise reference: the ambient noise measured while still (room
-        background and microphone, :meth:`_warm_up`) plus the motors' expected ego-noise at
-        this block's level. The paper records the robot's driving noise in advance, in the
-        room, so its reference holds the room's steady noise too: a bin counts only where a
-        sound stands 10 times above both."""
-        c = self.coupling
-        level = c.ego_noise.pressure_rms if c.ego_noise is not None else 0.0
-        last = self._noise_reference_of
-        if last is not None and last[0] is self.ambient_power and last[1] == level:
-            return  # the same ambient and ego level as the last block: the same reference
-        if c.ego_noise is None:
-            ego = 0.0
-        else:  # = expected_power_spectrum(window=...) at this level, without its checks each block
-            unit = self._ego_unit_spectrum
-            if unit is None or unit[0] is not c.ego_noise:
-                window = self.pipeline.frontend.window
-                unit = self._ego_unit_spectrum = (c.ego_noise, c.ego_noise.unit_power_spectrum(window=window))
-            ego = unit[1] * level**2
-        self.pipeline.set_noise_power(self.ambient_power + np.asarray(ego) / FULL_SCALE_PA**2)
-        self._noise_reference_of = (self.ambient_power, level)
 
     def at(self, t: float) -> float:
         """Project-clock time (s) of ``t`` seconds after the episode's start."""
@@ -364,7 +323,7 @@ class HearingTaskEnv(gym.Env):
         The public way to add a distractor (or any sound) where the world has no emitter:
         a source of the renderer at ``position``, from its start sample on; the ground truth
         (``info["events"]``, ``info["sounding"]``) lists it as ``task/<name>``. See
-        :meth:`tasks.soundscape.Soundscape.schedule_sound` for the details.
+        :meth:`acoustic_sim.world.soundscape.Soundscape.schedule_sound` for the details.
 
         Parameters
         ----------
@@ -403,8 +362,8 @@ class HearingTaskEnv(gym.Env):
             raise ConfigError("call reset() before schedule_sound()")
         if not (isinstance(start_s, (int, float, np.floating, np.integer)) and np.isfinite(start_s)):
             raise ConfigError(f"schedule_sound({name!r}): start_s must be a finite time in s, got {start_s!r}")
-        return self.soundscape.schedule_sound(name, label, signal, position, self.at(start_s), level_db, frame=frame,
-                                              outside=outside, kind=kind, detail=detail)
+        return self.hearing.schedule_sound(name, label, signal, position, self.at(start_s), level_db, frame=frame,
+                                           outside=outside, kind=kind, detail=detail)
 
     @property
     def task_sounds(self) -> list[TaskSound]:

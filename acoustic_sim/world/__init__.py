@@ -13,6 +13,9 @@ snapshot
 view, events, coupling, egonoise
     Named read-only accessors over ``MjData``; sound events from physics; the once-per-
     control-step hand-off to the acoustic world; the motors' ego-noise.
+soundscape
+    Sounds scheduled anywhere in the room (the one owner of their renderer sources) and the
+    ground truth of what is sounding; :class:`acoustic_sim.loop.HearingLoop` drives it.
 
 Nothing is imported here eagerly: MuJoCo picks its OpenGL backend (``MUJOCO_GL``) when it is
 first imported, and :mod:`acoustic_sim.world.snapshot` must be able to choose it first. The

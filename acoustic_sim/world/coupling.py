@@ -24,7 +24,9 @@ sample, several sounds of one emitter overlap, and adding a sound never costs a 
 (which takes tens of milliseconds to set up). The ring holds pressure at 1 m in pascal (the
 source's level is 1 Pa for a unit sample), so each sound carries its own level.
 
-Outside emitters (the car horn) play from where the straight line from their site to the
+Outside emitters (the car horn) play by :meth:`Coupling.through_body`, the one law for sounds
+from beyond the walls (a task's other vehicle follows it too, through
+:class:`~acoustic_sim.world.soundscape.Soundscape`): from where the straight line from their site to the
 head enters the room, ``outside_margin_m`` inside the walls (just inside the windscreen;
 :meth:`RoomFrame.entry_point`), at their level minus the body's transmission loss and minus
 the spreading from the site to that point, ``20 log10(max(d, 1 m) / 1 m)`` dB: the body
@@ -39,6 +41,7 @@ instead of 68-86 deg, though its path that way is 0.2-0.5 m, 0.7-1.5 ms, longer.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import mujoco
 import numpy as np
@@ -451,6 +454,39 @@ class Coupling:
         self.advance()
         return self.render()
 
+    # -- sounds from outside the room ---------------------------------------------------------------
+    def through_body(self, point_room, level_db: float, *, margin: float | None = None) -> tuple[np.ndarray, float]:
+        """Where and how loud a source outside the acoustic room plays inside it: the one
+        law for sounds from beyond the walls (the car horn here, a task's other vehicle
+        through :class:`~acoustic_sim.world.soundscape.Soundscape`; module docstring).
+
+        From the point ``margin`` inside the walls where the straight line from
+        ``point_room`` to the head (:attr:`head_position`, now) enters the room
+        (:meth:`RoomFrame.entry_point`), at ``level_db`` minus the body's transmission loss
+        (``events.config.transmission_loss_db``) and minus the spreading
+        ``20 log10(max(d, 1 m))`` from the source to that point.
+
+        Parameters
+        ----------
+        point_room : array_like, shape (3,)
+            The source, room frame (m), outside the room.
+        level_db : float
+            dB SPL at 1 m of the source, outside.
+        margin : float, optional
+            How far inside the walls (m); default :attr:`outside_margin_m`.
+
+        Returns
+        -------
+        position : numpy.ndarray, shape (3,)
+            Room frame (m).
+        level_db : float
+            dB SPL at 1 m from ``position``.
+        """
+        p = np.asarray(point_room, dtype=float)
+        inside = self.frame.entry_point(p, self.head_position, self.outside_margin_m if margin is None else margin)
+        d = float(np.linalg.norm(p - inside))
+        return inside, level_db - self.events.config.transmission_loss_db - 20.0 * math.log10(max(d, 1.0))
+
     # -- internals ------------------------------------------------------------------------------
     def _apply(self, ev: SoundEvent) -> None:
         e = self._emitters[ev.source]
@@ -480,15 +516,11 @@ class Coupling:
 
     def _anchor(self, e: _EmitterState) -> tuple[np.ndarray, float]:
         """Room-frame position (m) an emitter plays from and its level change (dB): for
-        outside emitters, where the straight path to the head enters the room, and minus the
-        loss and spreading to it."""
-        f = self.frame
-        p = f.to_room(self.view.site_position(e.anchor))
+        outside emitters, :meth:`through_body` (its level change: the law applied to 0 dB)."""
+        p = self.frame.to_room(self.view.site_position(e.anchor))
         if not e.outside:
             return p, 0.0
-        inside = f.entry_point(p, self.head_position, self.outside_margin_m)
-        d = float(np.linalg.norm(p - inside))
-        return inside, -self.events.config.transmission_loss_db - 20.0 * np.log10(max(d, 1.0))
+        return self.through_body(p, 0.0)
 
     def _sync_poses(self) -> None:
         """Head and emitter poses from the view, in the room frame, to the renderer."""

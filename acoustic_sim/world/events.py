@@ -36,10 +36,12 @@ average click or throw. Key turns, calls and distractors are one natural instanc
 that no control step pays for them, unless the request passes its own signal.
 
 Outside sounds. The renderer's room must contain every source, but the car horn is
-outside the cabin. Its emitter is marked ``outside``: the coupling plays it from the point
-of the cabin's air volume nearest to the horn site (just inside the windscreen) at the
-horn's level minus the body's transmission loss (:attr:`EventsConfig.transmission_loss_db`)
-minus the spreading from the horn to that point (see :mod:`acoustic_sim.world.coupling`).
+outside the cabin. Its emitter is marked ``outside``: the coupling plays it from where the
+straight line from the horn site to the head enters the cabin's air volume (just inside the
+windscreen) at the horn's level minus the body's transmission loss
+(:attr:`EventsConfig.transmission_loss_db`) minus the spreading from the horn to that point
+(:meth:`Coupling.through_body <acoustic_sim.world.coupling.Coupling.through_body>`, the one
+law for sounds from outside, which scheduled sounds outside the room follow too).
 """
 
 from __future__ import annotations
