@@ -44,7 +44,7 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     change moved ReverseAlarm's beepers on the left onto the front's mirror image from the
     then policy's listening pose (45 deg right), so the policy changed with it: it now
     listens 22 deg right and accepts a window of lateral angles
-    (:class:`policies.scripted.ScriptedReverseAlarm` has the measurements). Fast models
+    (:class:`policies.scripted.ScriptedReverseAlarm`; measurements: docs/notes/alarm_policy.md). Fast models
     under this law with the old policy, seeds 1000-1099 (89 with no false release under the
     old law): 87 with 2 false releases (test seeds 100-119: 17/20 with 2); 30 deg right 85
     with 2; 25 deg right 78 with none; 20 deg right 54; 25 deg right without the mirror

@@ -9,11 +9,11 @@ Network (Piczak's structure, resized for a 2 ms budget)
 -------------------------------------------------------
 Piczak's logMel-CNN is conv (80 filters, 57 x 6 freq x time) - max-pool (4 x 3, stride
 1 x 3) - conv (80, 1 x 3) - max-pool (1 x 3) - two fully connected layers of 5000 ReLUs -
-output, dropout 0.5. On our 128 x 25 input that network has 80 M parameters and one frame
-of both ears takes 15 ms (p90 19 ms) on the 2 CPU cores here (the two 5000-unit layers are
-over 100 MB of weights to stream per frame). The budget is 2 ms for both ears
-(``torch.set_num_threads(2)``, the ears as one batch of 2), so the layers keep Piczak's
-order and kernel shapes but shrink (profile ``paper``; input freq x time 128 x 25):
+output, dropout 0.5. On our 128 x 25 input that network has 80 M parameters (the two
+5000-unit layers are over 100 MB of weights to stream per frame), far over the budget of
+2 ms for both ears (``torch.set_num_threads(2)``, the ears as one batch of 2), so the layers
+keep Piczak's order and kernel shapes but shrink (profile ``paper``; input freq x time 128
+x 25):
 
 =======  =============================================  ============  =====================
 layer    paper profile                                  output        why
@@ -33,16 +33,12 @@ out      6 sigmoids                                     6
 
 Pools run in ceil mode: in floor mode the time axis (25 -> 21 -> 7 -> 5 -> 1) would keep
 only frames 0-18 and never see the newest 6 frames (96 ms), where onsets are. Dropout is
-0.2, not Piczak's 0.5: this small network underfits (training and held-out F1 stayed
-within 0.03 of each other in every trial), and less dropout with more epochs helped
-(14 000 windows: macro F1 0.81 with 0.3 and 6 epochs, 0.89 with 0.2 and 14 epochs).
+0.2, not Piczak's 0.5: this small network underfits, and less dropout with more epochs
+helped.
 
-1.12 M parameters. Measured here (2 threads, batch of 2 ears, inference mode, median of
-400 frames; machine otherwise idle): 0.98 ms per frame (p90 1.11 ms); with 32 filters and
-256 units 0.69 ms but a lower F1 (0.74 against 0.78 for 48 / 384 in a short trial), with
-64 / 512 1.26 ms and with Piczak's 80 filters / 512 units 1.53 ms (p90 1.74 ms). 48 / 384
-is the largest that leaves about half the budget for a loaded machine
-(:func:`frame_time_ms` measures it again; ``train_command`` reports it).
+1.12 M parameters, about 1 ms per frame of both ears: 48 / 384 is the largest size that
+leaves about half the budget for a loaded machine (:func:`frame_time_ms` measures it again;
+``train_command`` reports it).
 
 Loss: the paper's KL divergence, in the form that fits independent sigmoid outputs
 ----------------------------------------------------------------------------------
@@ -80,19 +76,10 @@ Profiles, caching, randomness
 -----------------------------
 ``paper``: the detector above, 40 000 training windows (about 2 860 scenes, 64 BRIRs),
 14 epochs of one random ear per window, batch 128, Adam 2e-3 cosine-decayed to 1e-4.
-Measured here (2 cores, otherwise idle): 266 s of data generation and 442 s of training,
-709 s in all; held-out macro F1 0.922 on 3 000 windows (stream 1 below, 4 BRIRs per room):
-car horn 0.959, reverse alarm 0.943, ratchet 0.900, gearshift 0.874, key turning 0.940,
-human voice 0.918; precision 0.97-0.99 everywhere, recall 0.80-0.94 (the misses are
-mostly quiet sounds in two- or three-sound mixtures and sounds at the window's edges).
-With 30 000 windows the F1 was 0.908 (490 s in all), with 14 000 0.889 (on 2 000 windows). ``fast``: 16 filters,
-128 units, 1 200 windows (4 BRIRs), 30 epochs: about 40 s in all, held-out macro F1 on 600
-windows 0.73, 0.60 and 0.72 over training seeds 2022, 1 and 2 (0.78, 0.79, 0.76 where
-espeak-ng is missing and every voice is the formant synthesizer's); for tests only. The
-previous recipe, 8 filters and 64 units, gave 0.58 and 0.55 (seeds 2022, 1), and without
-espeak-ng anything from 0.10 to 0.77 over two seeds and two learning rates (0.35 with the
-profile's seed, never detecting a voice or the gearshift, so the task tests' hearing probe
-failed).
+``fast``: 16 filters, 128 units, 1 200 windows (4 BRIRs), 30 epochs; for tests only.
+
+Measurements (the sizes, dropout and recipes compared: frame times, training times,
+held-out F1): docs/notes/melcnn_recipes.md.
 
 Trained on first use and cached as a checkpoint
 (:mod:`~acoustic_sim.auditory.checkpoint`) in the cache folder (file

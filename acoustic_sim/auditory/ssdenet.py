@@ -12,8 +12,7 @@ direction d_k of the grid, all with sigmoid activations::
 Fusion (:data:`FUSIONS`)
     The paper's sum over valid bins is ``fusion="sum"``; the default is ``"product"``, n
     times the geometric mean of the valid bins' maps (:func:`fuse`), which a bin that is
-    confidently wrong cannot outvote: square 2 kHz over every direction 20.8 -> 9.9 deg
-    mean error with the musashi paper bank (:data:`FUSIONS` has the measurements).
+    confidently wrong cannot outvote (measurements: docs/notes/fusion.md).
 
 Batched bank
     The networks of all chosen bins are stored as stacked weights ``w1 (n_bins, 5, H)``,
@@ -112,38 +111,26 @@ FUSIONS = ("product", "sum")
     sum does.
 
 Why the product is the default: under the sum a bin whose network is confidently wrong
-outvotes the others, which matters most when few bins are valid. A square wave at 2 kHz has
-its odd harmonics at 2, 6, 10 kHz, which meet three of the paper bank's 32 bins. The full
-``eval paper`` run (musashi ears, paper bank, every grid direction; ``results/paper``, whose
-simulation table has both columns), sum -> product mean error: square 2 kHz 20.8 -> 9.9 deg,
-triangle 2 kHz 20.6 -> 11.1, sawtooth 2 kHz 13.8 -> 3.2, triangle 1 kHz 11.5 -> 3.1, white
-noise 4.5 -> 0.9; the sines (one valid bin) are the same under both. In the lab room, on the
-frames: top-bottom 0.72 -> 0.79, median-plane error 80.4 -> 55.6 deg, front-back confusion
-0.47 -> 0.33; on the first wavefront (three windows pooled as below) top-bottom 0.87 -> 0.90.
-The floor keeps one bin's exact zero from vetoing a direction; on the square wave (session
-22, a ``/tmp`` script on the same bank and frames) a floor of 1e-4 gave 10.0 deg, 1e-2 10.9,
-5e-2 25.7.
+outvotes the others, which matters most when few bins are valid (a square wave at 2 kHz
+meets three of the paper bank's 32 bins). The floor keeps one bin's exact zero from vetoing
+a direction.
 
 Frames are still summed (each frame's fused map, :meth:`SSDENetBank.estimate`, the
 pipeline's evidence window): a frame that holds another sound, or mostly reverberation,
-would veto the right direction under a product over frames as well. (A product over frames
-too gave the same task successes as this design over the 400 episodes of
-:data:`DEFAULT_FUSION`'s table.) The pipeline's onset windows, several looks at one first
-wavefront, are pooled by :func:`pool_looks` like the bins: their geometric mean under the
-product. What it changed on the tasks is in :data:`DEFAULT_FUSION`.
+would veto the right direction under a product over frames as well. The pipeline's onset
+windows, several looks at one first wavefront, are pooled by :func:`pool_looks` like the
+bins: their geometric mean under the product.
+
+Measurements (simulation, room, tasks; the floor): docs/notes/fusion.md.
 """
 
 DEFAULT_FUSION = "product"
 """The fusion :class:`SSDENetBank` and the pipeline use unless told (:data:`FUSIONS`).
 
-Measured with the scripted policies (paper models, kemar; successes out of 100 episodes, sum
--> product; session 22): ReverseAlarm seeds 100-199 96 -> 98, 200-299 88 -> 92 (one false
-release either way), 2000-2099 93 -> 97; ParkingBrake seeds 100-199 98 -> 95, which is why
-that task keeps the sum (:attr:`tasks.parking_brake.ParkingBrakeEnv.fusion`). With the
-models retrained on another machine (2026-12-05, ``/tmp`` script over ``run_episodes``):
-ReverseAlarm 100-199 96 -> 98, ParkingBrake 100-199 97 -> 95, no false release. The sum stays
-available everywhere as ``fusion="sum"`` (``acoustic-sim localize --fusion sum``), and
-``eval paper`` reports both."""
+ParkingBrake keeps the sum (:attr:`tasks.parking_brake.ParkingBrakeEnv.fusion`), where
+the product measured worse. The sum stays available everywhere as ``fusion="sum"``
+(``acoustic-sim localize --fusion sum``), and ``eval paper`` reports both. Measurements:
+docs/notes/fusion.md."""
 
 FUSION_FLOOR = 1e-4
 """Floor of each bin's P(d, w_i) under the product fusion (:data:`FUSIONS`)."""
@@ -396,17 +383,8 @@ Why: a network interprets the ILD/IPD of its bin as a source at its frequency. N
 strong tone the window's sidelobes (-41 dB and below) fill the neighbouring bins with the
 tone's own interaural phasors, far above the paper's noise threshold (a test tone 40 dB
 over the sensor noise has about 69 dB of SNR in its peak bin), so the 624-1507 Hz networks
-read a 1 kHz tone's IPD as a 624 Hz source's, and vote for the wrong directions. Measured
-(musashi ears, ``paper`` bank, every third grid direction, 109 sources, the simulation of
-``eval paper``), mean error without -> with the rule, deg: sine 500 Hz 57.4 -> 41.4,
-1 kHz 58.0 -> 46.8, 2 kHz 43.7 -> 37.3; square 500 Hz 7.2 -> 3.1, 1 kHz 30.3 -> 14.4,
-2 kHz 19.7 -> 20.3; triangle 1 kHz 36.0 -> 14.5; sawtooth 2 kHz 8.9 -> 10.0; white noise
-5.3 -> 5.3 (broadband sound has no dominant peak). A factor of 1 instead of 10 gave 42.7,
-50.3, 37.3, 2.9, 17.2, 20.3, 21.6, 10.0, 5.3. Keeping the leakage within 15 or 25 % of a
-tone's frequency (where its IPD reads nearly right) was no better (15 %: sine 2 kHz 44.5,
-square 1 kHz 14.7, triangle 1 kHz 15.9). An earlier trial that called a bin 20-40 dB below
-the strongest within +-12 bins leakage helped the squares less (1 kHz 21.5 deg) and cost the
-500 Hz sine: it ignored how the sidelobes fall off with distance."""
+read a 1 kHz tone's IPD as a 624 Hz source's, and vote for the wrong directions.
+Measurements (the factor and the alternatives compared): docs/notes/ssdenet_recipes.md."""
 
 
 _LEAKAGE_CHUNK = 1 << 22

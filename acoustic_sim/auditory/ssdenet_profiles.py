@@ -3,8 +3,8 @@
 A bank of per-bin networks (:mod:`acoustic_sim.auditory.ssdenet`) localises a sound only
 through the bins that have a network, so the choice of bins is part of a profile, beside the
 network size and the training recipe. :data:`PAPER` is the paper's network size on 32
-bins (:func:`harmonic_bins`; the reasons and measurements are in :data:`PAPER`'s
-docstring), :data:`FAST` a small bank for tests and the tasks' regression tests, :data:`QUICK` a
+bins (:func:`harmonic_bins`; the reasons and measurements are in
+docs/notes/ssdenet_recipes.md), :data:`FAST` a small bank for tests and the tasks' regression tests, :data:`QUICK` a
 smaller one for the quick paper evaluation. All are re-exported by :mod:`acoustic_sim.auditory.ssdenet`.
 """
 
@@ -264,50 +264,18 @@ grid, 13.4 M = 51 MiB for the bank) on 32 bins from 301 Hz to 11.99 kHz
 (:func:`harmonic_bins`), trained on 1000 sounds per bin (327 000 examples, one epoch).
 
 Bins: every multiple of 500 Hz up to 12 kHz (24 bins) and 8 ERB-spaced bins between 300 Hz
-and 1.8 kHz. Why not all 544 bins of 300 Hz-12 kHz (the paper's range): the budgets. One
-frame costs about 0.045 ms per valid bin (the weights, 1.7 MB per bin, stream through the
-cache once per frame), SSDENet has about 2-3 of the 4 ms frame budget it shares with
-MelCNN, and training is linear in the bins (all 544 would take over two hours here and 230
-M parameters, 0.9 GB). Why these 32: a harmonic sound is localised only through the
-harmonics that fall on a network. The first bank had 32 ERB-spaced bins (nine moved onto
-the audiometric frequencies): the odd harmonics of a 500 Hz square wave (0.5, 1.5, 2.5,
-... kHz) met two of its networks, those of a 1 kHz one two, and SSDENet lost to MUSIC,
-which uses every bin, on 9 of the paper's 13 test signals (triangle 500 Hz: 50.4 against
-17.0 deg; square 500 Hz: 40.4 against 17.9; ``results/paper`` of 2026-11-22). On the 500
-Hz lattice lie all harmonics of the paper's fundamentals (0.5, 1 and 2 kHz), and densely
-enough above 2 kHz (13 bins in 6-12 kHz, where the pinna notches are) for the spectral
-cues of front and back; the low ERB fill keeps the interaural phase of lateral directions,
-unambiguous only below about 1.5 kHz, sampled every 65-200 Hz. The full ``eval paper`` run
-(musashi ears, ``results/paper``, with the validity rule's leakage test,
-:data:`~acoustic_sim.auditory.ssdenet.LEAKAGE`, and the product fusion of bins,
-:data:`~acoustic_sim.auditory.ssdenet.FUSIONS`): SSDENet below MUSIC on all 13 signals
-(triangle 500 Hz 1.7 against 17.0 deg, white noise 0.9 against 8.3; banks trained on this
-machine's CPU, 2026-12-05); the narrowest margin is the 2 kHz sine (42.7 against 44.0), a
-single bin, where the lattice changes nothing. The worst broadband signal is the 2 kHz
-square wave, 9.9 deg: its harmonics up to 12 kHz meet three networks (2, 6 and 10 kHz).
-Under the paper's sum of the bins' maps it was 20.8 deg, with a median of 0: the mean came
-from cone-of-confusion mistakes (the same lateral angle, another elevation), where one of
-the three bins' confident wrong peak outvoted the other two; the evidence was there (the
-product of the three maps finds the direction). Before that was found, neither more
-training nor more bins reached 15 deg under the sum: banks trained on those three bins alone
-(109 directions; 1 or 2 epochs, 1000 or 3000 sounds) gave 17.7-24.3 deg for the square wave;
-on the musashi ears (327 directions, a ``/tmp`` script, 2026-12-03) 21.3 deg, with a 14 kHz
-network as well 24.0, with 14 and 18 kHz 19.7; ``jitter_deg=0`` 27.2, ``sigma_deg`` 3 23.1,
-``sigma_deg`` 10 29.1 (against 21.3 with the profile's 6 and 6). A pure tone off the
-lattice above 1.8 kHz (a 2.25 kHz sine, a voice's upper harmonics) meets no network, and one
-below it only where the fill has a bin: a bank of a subset of bins cannot localise every
-tone.
+and 1.8 kHz. A harmonic sound is localised only through the harmonics that fall on a
+network: on the 500 Hz lattice lie all harmonics of the paper's fundamentals (0.5, 1 and 2
+kHz), densely enough above 2 kHz for the pinna's spectral cues, and the low ERB fill keeps
+the interaural phase of lateral directions. Not all 544 bins of 300 Hz-12 kHz (the paper's
+range): the frame budget and the training time are linear in the bins. A pure tone off the
+lattice above 1.8 kHz meets no network: a bank of a subset of bins cannot localise every tone.
 
 Training: ``sigma_deg=6``, ``jitter_deg=6``: every measured KEMAR direction (710, twice the
 grid) is a virtual source, not only the 327 nearest to grid directions, so sources between
-grid directions (where the renderer plays other measured HRIRs) are localised too. On 8
-ERB-spaced bins (1 epoch): sources only on the grid gave 5.7 deg mean error on grid
-directions but 24.8 deg over all 710 measured directions; jittered sources with sigma 6
-gave 13.3 and 18.5 deg; sigma 4 with jitter 23.6 deg over all directions. Batches of 256
-(1278 Adam steps) beat 512 (639 steps) at the same cost (18.5 against 19.8 deg). SNR
-10-40 dB: the range in which bins are valid (10 dB above the noise); training down to 5 dB
-made clean estimates worse (17 against 14 deg in a fast bank). Training time, frame time
-and memory: ``acoustic-sim bench pipeline`` (``bench/pipeline.json``).
+grid directions (where the renderer plays other measured HRIRs) are localised too.
+
+Measurements (the bins and recipes compared): docs/notes/ssdenet_recipes.md.
 """
 
 FAST = SSDENetProfile(
@@ -327,90 +295,13 @@ bins (:func:`harmonic_bins`), trained like it on jittered virtual sources (``jit
 ``sigma_deg=6``): the bank of the tests and of the cabin tasks' regression tests. 500 sounds
 per bin, 3 epochs (about 7 700 Adam steps of 64 examples at a learning rate of 0.01; one
 thread, because its matrices are too small to gain from more, and one thread cannot stall
-behind other jobs): 98 s of CPU time, 137 s with other jobs on both cores (``acoustic-sim
-train ssdenet --profile fast``; the 16-bin bank: 13-17 s).
-
-Why this recipe (since 2026-12-04, session 21; before, 16 ERB-spaced bins, 200 sounds, 2
-epochs, sources only at grid directions, now :data:`QUICK`): under the line-of-sight law
-for outside sounds (:func:`tasks.soundscape.outside_placement`) the scripted ReverseAlarm
+behind other jobs; ``acoustic-sim train ssdenet --profile fast``). The scripted ReverseAlarm
 policy reads the alarm's lateral angle 22 deg off the median plane
-(:class:`policies.scripted.ScriptedReverseAlarm`), where the 16-bin bank's estimates
-scatter (10 of 20 on the test seeds 100-119). Measured with that law and policy (a ``/tmp``
-script; test seeds 100-119, training seeds 0, 1 and 2; anechoic: KEMAR, white noise through
-the HRTF, ``grid`` the grid test of ``tests/test_ssdenet.py``, ``all`` the 710 measured
-directions, ``five`` its five rendered directions, each of which must be within 20 deg):
+(:class:`policies.scripted.ScriptedReverseAlarm`), where the 16-bin bank (:data:`QUICK`)
+scatters; this is the cheapest recipe measured that meets the cabin targets for three
+training seeds and the anechoic tests for the profile's seed.
 
-| recipe (training time, other core busy) | ReverseAlarm /20 | ParkingBrake /20 | anechoic mean error, deg |
-|---|---|---|---|
-| 16 ERB bins, 200 sounds, 2 epochs (:data:`QUICK`, 17 s) | 10 (seed 0) | 18 / 19 / 19 | grid 4.7, all 20.7 |
-| 32 bins, jittered, 200 sounds, 2 epochs (30 s) | not measured | 19 / 19 / 19 | grid 23.2; two of five beyond 20 |
-| the same, 400 sounds, 3 epochs (79 s) | 18 / 20 / 18 | 19 / 19 / 19 | grid 8.9 / 8.8 / 6.1, all 13.1 / 12.9 / 10.5; seed 0: one of five at 57 |
-| **the same, 500 sounds, 3 epochs (this profile; 98 s CPU)** | **19 / 20 / 18** | **19 / 18 / 19** | grid 5.0 / 7.0 / 5.6, all 8.8 / 10.9 / 10.6; seed 2: one of five at 53 |
-| the same, 600 sounds, 4 epochs (150 s) | 19 / 19 / 20 | 18 / 19 / 19 | grid 4.9 / 4.1 / 3.0, all 8.6 / 9.0 / 7.0 |
-
-No false release in ReverseAlarm with any of the 32-bin banks; in ParkingBrake (which the
-law does not touch) one with the 600-sound bank of seed 0 (115). On seeds 1000-1099
-(training seed 0): this profile ReverseAlarm 95 with none, ParkingBrake 90 with 3 false
-releases; the 600-sound bank ReverseAlarm 90 with none, ParkingBrake 89 with 4; the
-400-sound bank ParkingBrake 92 with 1; the 16-bin bank ReverseAlarm 73 with none (89 with
-none under the old law and policy), ParkingBrake 89 with 1. Every recipe lets go falsely
-in 0-4 % of those episodes, and the cheaper 32-bin ones put one of the five anechoic
-directions at its front-back mirror for some training seed, so 20 episodes without a false
-release, and five directions within 20 deg, are draws, not properties of a recipe: this
-one meets the cabin targets for all three seeds and the anechoic tests for the profile's
-seed (0), at about two thirds of the 600-sound recipe's cost. It is trained once per test
-run (the kemar bank; ``eval paper --quick`` takes :data:`QUICK`).
-
-Earlier measurements (before the line-of-sight law, with the then policy's front sectors),
-kept for whoever changes the recipe again. The 16-bin bank's virtual sources sit exactly on
-the measured directions nearest to the grid directions (``jitter_deg=0``, the paper's
-setting, where measurement and estimation directions are the same), so it is accurate for
-sources at grid directions (KEMAR, white noise through the HRTF: mean error 4.1 deg over the
-grid, 1.9 deg off the median plane, 94 % within 20 deg) but not between them (21 deg over
-all 710 measured directions). sigma 4 deg: sharp targets train faster in a small network
-(sigma 12, 8, 6, 4 deg gave 17, 11, 7, 4 deg). 2044 Adam steps of 64 examples at a learning
-rate of 0.01; one thread, because its matrices are too small to gain from more, and one
-thread cannot stall behind other jobs on a busy machine.
-
-Variants measured in the cabin tasks, where the regression tests used the 16-bin bank then
-(scripted policies, test seeds 100-119 with training seeds 0, 1 and 2, and seeds 1000-1099;
-a ``/tmp`` script, 2026-12-04). The 16-bin bank (:data:`QUICK`): ReverseAlarm 18, 15 and 14
-of 20, each with one false release, ParkingBrake 18, 19 and 19 with none; on 1000-1099
-ReverseAlarm 89 with none (training seed 0) and 78 with 1 (seed 1), ParkingBrake 89 with 1.
-Jittered sources as in the paper profile (``jitter_deg=6``, ``sigma_deg=6``, the same
-training time): ReverseAlarm 19 of 20 with none for all three seeds, ParkingBrake 18, 19 and
-19 with none; on 1000-1099 ReverseAlarm 90 with none and ParkingBrake 91 with 1 for seeds 0
-and 1 alike; but white noise through KEMAR's HRIRs at the grid directions (rendered as
-``tests/test_ssdenet.py``'s grid test does) 21.4 deg mean error (14.6 off the median plane,
-81 % within 20 deg), against the 16-bin bank's 4.7 (0.5, 99 % that way), and 24.1 against
-20.7 over all 710 measured directions: the accuracy that the unit tests and issue 3's
-anechoic test check. The same with 400 sounds and 3 epochs (35 s): 14.4 (8.9, 88 %) and 18.6
-deg, but ReverseAlarm 18 and 19 of 20 (seeds 0, 1) and 85 on 1000-1099. ``sigma_deg=6``
-alone: ReverseAlarm 18 with one false release and 19 with none (seeds 0, 1), 86 with 1 on
-1000-1099 (seed 1). The paper profile's 32 bins at this size (twice the training time):
-ReverseAlarm 19, 19 and 18 with none, ParkingBrake 19, 19 and 16; on 1000-1099 93 with 2
-false releases and 92 with 1. The paper's 32 bins with jittered sources (2026-12-04, a fresh
-machine; ``grid`` is the grid test above, ``all`` the 710 measured directions, ``five`` the
-five rendered directions of ``tests/test_ssdenet.py``, which must each be within 20 deg;
-times with another job on the other core): 200 sounds, 2 epochs (26-33 s): ReverseAlarm 19,
-19 and 20 of 20 and ParkingBrake 19, 19 and 19, none with a false release, but grid 23.2
-deg, all 24.1, two of the five beyond 20 deg (training seed 0); at H=128 (55 s) grid 23.9
-(seed 0). The 16 bins, jittered, at H=128 (28-30 s): ReverseAlarm 19, 19 and 18 (one false
-release), ParkingBrake 18, 19 and 19, grid 22.6, 20.4 and 19.4. The 32 bins, jittered, 400
-sounds, 3 epochs (79 s): 19, 19, 19 and 19, 19, 19 with none, grid 8.9, 8.8 and 6.1 deg, all
-13.1, 12.9 and 10.5, but seed 0's bank puts (150, 30) at its front-back mirror (57 deg); on
-1000-1099 ReverseAlarm 88 with 1 false release (seed 0) and 96 with 1 (seed 1), ParkingBrake
-92 with 1 and 91 with 2. 600 sounds, 4 epochs (150 s): grid 4.9, 4.1 and 3.0, all 8.6, 9.0
-and 7.0 deg, the five within 12 deg, but on the test seeds ReverseAlarm 18 of 20 with one
-false release (seed 0), 19 and 19, ParkingBrake 18 with one, 19 and 19, and on 1000-1099
-ReverseAlarm 91 with 3 (seed 0) and 91 with 1 (seed 1), ParkingBrake 89 with 4 and 90 with
-3. A better localiser in the anechoic tests is not a better one in the cabin, and every
-variant lets go falsely in 1-4 % of episodes there, so 20 episodes with none is a draw, not
-a property of a recipe. None is better in the tasks for every training seed and in the
-anechoic tests, so session 20 kept the 16-bin bank (the 79 s and 150 s recipes would also be trained three
-times per test run: the kemar bank and the quick paper evaluation's two), and the tests'
-cabin targets stayed expected failures with a floor (``tests/test_policies.py``) until the
-line-of-sight law and the lateral rule (above).
+Measurements (the recipes compared, training times, seed ranges): docs/notes/ssdenet_recipes.md.
 """
 
 QUICK = dataclasses.replace(
@@ -424,12 +315,11 @@ QUICK = dataclasses.replace(
 )
 """Small networks (5 -> 64 -> 64 -> D, 0.4 M parameters) on 16 ERB-spaced bins, 200 sounds,
 2 epochs, virtual sources only at the measured directions nearest to the grid
-(``jitter_deg=0``, the paper's setting), sigma 4 deg: trains in 13-17 s. Used by
-``acoustic-sim eval paper --quick``, which trains two banks (the ears' own and the measured
-HRTF's) and must finish within 3 minutes; accurate for sources at grid directions (KEMAR,
-white noise: 4.1-4.7 deg mean error over the grid) but not between them (21 deg over all
-710 measured directions), so not the tasks' bank (:data:`FAST`). It was the ``fast``
-profile until 2026-12-04."""
+(``jitter_deg=0``, the paper's setting), sigma 4 deg. Used by ``acoustic-sim eval paper
+--quick``, which trains two banks (the ears' own and the measured HRTF's) and must finish
+within 3 minutes; accurate for sources at grid directions but not between them, so not the
+tasks' bank (:data:`FAST`). It was the ``fast`` profile until 2026-12-04. Measurements:
+docs/notes/ssdenet_recipes.md."""
 
 PROFILES: dict[str, SSDENetProfile] = {"paper": PAPER, "fast": FAST, "quick": QUICK}
 """The named profiles."""

@@ -21,18 +21,10 @@ noise_power) -> unit vector`` (:data:`AudioEstimator`): :func:`first_wavefront` 
 streaming pipeline's precedence rule (:mod:`~acoustic_sim.auditory.precedence`) applied to the
 loudspeaker's onset, so the room table shows what it does against the paper's frames.
 
-Why the frames lose the median plane in the room (measured 2026-12-03 with the ``paper``
-banks, musashi ears, 25 median-plane elevations x 4 trials): at 1.5 m the lab's reverberant
-field is stronger than the direct sound (critical distance about 1.0 m for 90 m^3 at RT60
-0.3 s; the frames' interaural coherence is 0.3-0.6 above 2.5 kHz), so the frames' cues are
-mostly the room's. A bank trained on the world's own (free-field) HRTF gives top-bottom 0.96
-on the frames in the anechoic room but 0.50 in the lab; on the onset's first wavefront 0.79
-in the lab (windows of 3, 5, 8 ms: 0.84, 0.86, 0.82). The paper's setting adds a second
-mismatch when the measured responses keep the conference room's early reflections, which
-are not the lab's: with 512 taps (11.6 ms) frames gave about 0.6 and the first wavefront
-0.77; cut at 128 taps before the first reflection
-(:data:`~acoustic_sim.experiments.paper.MEASURED_TAPS`), 0.64 and 0.84 on the same trials
-(one window at the onset; three, :data:`ROOM_ONSET_WINDOWS`, 0.87).
+The frames lose the median plane in the room: at 1.5 m the lab's reverberant field is
+stronger than the direct sound, so the frames' cues are mostly the room's, while the
+loudspeaker's first wavefront still holds the direct sound. Measurements:
+docs/notes/room_localization.md.
 """
 
 from __future__ import annotations
@@ -194,17 +186,8 @@ ROOM_ONSET_WINDOWS = 3
 """Windows the room experiment's first-wavefront estimator takes at a rising onset, 1 ms
 apart (the cabin tasks' setting, :attr:`tasks.cabin.CabinLeverTask.onset_windows`). The
 loudspeaker's noise reaches the head before any of the lab's reflections (the floor's about
-4 ms later), so the later windows add looks at the direct sound: measured on the median
-plane (paper bank from the responses measured in the conference room, musashi ears, 25
-elevations x 4 trials, seeds 1-9 of a ``/tmp`` script, not the committed run's; the sum
-fusion of bins, the windows' maps averaged), top-bottom 0.846 with one window and 0.866
-with three (higher in 8 of the 9 seeds), front-back confusion 0.26 both, mean error 43.8
--> 42.2 deg; one longer window instead (ending 3 or 4.75 ms after the onset): 0.843 and
-0.852. On the horizontal plane (12 azimuths x 4 trials,
-seeds 0-9): mean error 47.1 -> 45.9 deg, left-right accuracy 0.993 with either (0.95-1.0
-per seed: one of the 40 lateral trials on the wrong side already gives 0.975). With the
-product fusion (the windows' maps pooled by their geometric mean, the bins by the product),
-the committed run's three windows give top-bottom 0.90 (0.87 under the sum)."""
+4 ms later), so the later windows add looks at the direct sound (measurements:
+docs/notes/room_localization.md)."""
 
 
 def first_wavefront(bank, *, leakage: float = LEAKAGE, windows: int = 1, fusion: str = DEFAULT_FUSION) -> AudioEstimator:
@@ -216,9 +199,8 @@ def first_wavefront(bank, *, leakage: float = LEAKAGE, windows: int = 1, fusion:
     from the onset's 1.75 ms window, those below from the first frame wholly after the onset,
     whose bins also decide validity (:func:`valid_bins` against ``noise_power``). The
     streaming pipeline tests validity on the frame the window completes in, which for a
-    loudspeaker switched on holds only the first milliseconds of it: on the room's median
-    plane (the 512-tap measured bank, 100 trials) that left few valid bins and top-bottom 0.61,
-    against 0.77 with the first whole frame. A recording with no onset, or no valid bin,
+    loudspeaker switched on holds only the first milliseconds of it, and so leaves few valid
+    bins (measurements: docs/notes/room_localization.md). A recording with no onset, or no valid bin,
     gives straight ahead (no information, as for silence).
 
     ``windows``: the windows taken at a rising onset (``AuditoryPipeline(onset_windows=)``,
