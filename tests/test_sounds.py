@@ -212,6 +212,18 @@ def test_espeak_needs_no_program_and_forgets_what_it_said(monkeypatch):
     assert np.array_equal(first, sounds.speech("Hey, Musashi!", rng(10), engine="espeak"))
 
 
+
+def test_espeak_phrase_does_not_depend_on_the_clock():
+    """espeak-ng seeds its noise source from time(NULL) when it starts; the worker fixes the
+    seed, so a phrase said in another second is the same phrase, sample for sample."""
+    import time
+
+    first, sr = espeak.synthesize("Over here!", "en-us+f5", 35, 181)
+    time.sleep(1.05 - time.time() % 1.0)  # into the next second of the clock
+    again, sr_again = espeak.synthesize("Over here!", "en-us+f5", 35, 181)
+    assert sr == sr_again and np.array_equal(first, again)
+
+
 # --------------------------------------------------------------------------- test signals
 
 EXPECTED_HARMONICS = {  # relative amplitude of harmonic n (sign dropped), 0 = absent

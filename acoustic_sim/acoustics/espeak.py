@@ -8,6 +8,8 @@ Each phrase is synthesized in a fresh interpreter (``python -I -S``, about 40 ms
 library keeps state between phrases (measured: the same phrase and voice said twice in one
 process differs in length and samples), so in-process synthesis would make a voice depend on
 what was said before it. A new process per phrase is what the ``espeak-ng`` program gave too.
+The worker also fixes the seed of the library's noise source (``espeak_ng_SetRandSeed``),
+which ``espeak_Initialize`` takes from the clock: otherwise a phrase changes every second.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ lib = ctypes.CDLL(lib_path)
 sr = lib.espeak_Initialize(2, 0, data_path.encode(), 0x8000)  # synchronous, no phoneme events
 if sr <= 0:
     sys.exit("espeak_Initialize failed")
+lib.espeak_ng_SetRandSeed(ctypes.c_long(1))  # Initialize seeds its noise from the clock (time(NULL))
 chunks = []
 CB = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.POINTER(ctypes.c_short), ctypes.c_int, ctypes.c_void_p)
 def collect(wav, n, events):
@@ -75,7 +78,7 @@ def available() -> bool:
     return _paths() is not None
 
 
-VERSION = "espeak-ng 1.52.0 (espeakng-loader 0.2.4)"
+VERSION = "espeak-ng 1.52.0 (espeakng-loader 0.2.4, noise seed 1)"
 """The engine :func:`synthesize` speaks with; models trained on its voices record it."""
 
 
