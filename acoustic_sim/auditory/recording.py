@@ -47,9 +47,10 @@ CHUNK_FRAMES = 256
 """Ear frames handed on at a time (4.1 s; 4 MB of spectra): the MelCNN's batch."""
 
 
-DETECT_BATCH = 64
-"""Frames whose patches the MelCNN runs on at once (both ears: 128 patches). The paper model's
-first convolution holds 0.44 MB a patch: 256 frames took 220 MB more peak memory than 64."""
+DETECT_BATCH = 16
+"""Frames whose patches the MelCNN runs on at once (both ears: 32 patches). The paper model's
+activations cost about 1 MB a patch at peak; 16 frames keep ``detect`` under 450 MB and are
+faster than 64 (docs/notes/streaming.md)."""
 
 
 class StreamResampler:
