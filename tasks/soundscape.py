@@ -29,7 +29,7 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     which :meth:`Soundscape.schedule_sound` applies to an ``outside`` sound): from the point
     ``margin`` inside the walls where the straight line from ``point_room`` to the head
     (``coupling.head_position``, at the time of the call) enters the room
-    (:meth:`~acoustic_sim.world.coupling.RoomFrame.entry_point`), at ``level_db`` minus the
+    (:meth:`~acoustic_sim.world.room_box.RoomFrame.entry_point`), at ``level_db`` minus the
     body's transmission loss and minus the spreading ``20 log10(max(d, 1 m))`` from the
     source to that point.
 

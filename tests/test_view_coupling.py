@@ -9,7 +9,8 @@ from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import block_length, frame_end_sample, rotation_zyx, vec_to_sph, world_to_head
 from acoustic_sim.world import names, scene
-from acoustic_sim.world.coupling import Coupling, RoomFrame
+from acoustic_sim.world.coupling import Coupling
+from acoustic_sim.world.room_box import RoomFrame
 from acoustic_sim.world.egonoise import MotorEgoNoise
 from acoustic_sim.world.events import EventsConfig
 from acoustic_sim.world.view import WorldView
@@ -99,8 +100,9 @@ def test_room_frame_matches_the_scene(name):
     v = WorldView(model, data)
     site = names.CABIN_INTERIOR_SITE if name == "cabin" else names.ROOM_INTERIOR_SITE
     frame = RoomFrame.from_box(*v.site_box(site))
-    corner, rotation, dims = scene.room_frame(model, site)
-    assert np.allclose(frame.origin, corner) and np.allclose(frame.rotation, rotation) and np.allclose(frame.dimensions, dims)
+    at_rest = scene.room_frame(model, site)  # read at qpos0, where the scenes place the box
+    assert np.allclose(frame.origin, at_rest.origin) and np.allclose(frame.rotation, at_rest.rotation)
+    assert np.allclose(frame.dimensions, at_rest.dimensions)
     assert np.allclose(frame.dimensions, info.room.dimensions)
     centre, _ = v.head_pose()
     assert np.allclose(frame.to_room(centre), info.room.listener, atol=1e-6)

@@ -38,6 +38,7 @@ import numpy as np
 from acoustic_sim.acoustics.room import WALLS, Room, eyring_absorption, room_preset
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names
+from acoustic_sim.world.room_box import RoomFrame
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets"
 """The repository's ``assets/`` folder (one menagerie-style folder per object)."""
@@ -304,12 +305,10 @@ def _interior_site(model: mujoco.MjModel) -> str:
     raise ConfigError(f"the model has no air-volume site ({' or '.join(map(repr, ROOM_PRESETS))}): not a composed scene")
 
 
-def room_frame(model: mujoco.MjModel, site: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Corner (m, world), orientation (3x3, room to world) and dimensions (m) of the air volume.
-
-    The room's origin is the box site's (-x, -y, -z) corner and its axes the box's, as the
-    coupling (``world.coupling.RoomFrame``) has it. The site is read at the model's
-    reference pose (``qpos0``), where it is wherever the scene placed it.
+def room_frame(model: mujoco.MjModel, site: str | None = None) -> RoomFrame:
+    """The :class:`~acoustic_sim.world.room_box.RoomFrame` of the air volume (the box site's
+    (-x, -y, -z) corner, the box's axes), as the coupling has it. The site is read at the
+    model's reference pose (``qpos0``), where it is wherever the scene placed it.
 
     Raises
     ------
@@ -324,15 +323,12 @@ def room_frame(model: mujoco.MjModel, site: str | None = None) -> tuple[np.ndarr
         raise ConfigError(f"site {site!r} must be box-typed (it describes an air volume)")
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    rotation = data.site_xmat[sid].reshape(3, 3).copy()
-    half = np.array(model.site_size[sid], dtype=float)
-    return data.site_xpos[sid] - rotation @ half, rotation, 2.0 * half
+    return RoomFrame.from_box(data.site_xpos[sid], data.site_xmat[sid].reshape(3, 3), model.site_size[sid])
 
 
 def to_room(model: mujoco.MjModel, points_world, site: str | None = None) -> np.ndarray:
     """Express world points (..., 3) in the acoustic room's frame (m)."""
-    corner, rotation, _ = room_frame(model, site)
-    return (np.asarray(points_world, dtype=float) - corner) @ rotation
+    return room_frame(model, site).to_room(points_world)
 
 
 def acoustic_room(model: mujoco.MjModel) -> Room:
@@ -353,7 +349,7 @@ def acoustic_room(model: mujoco.MjModel) -> Room:
     """
     site = _interior_site(model)
     preset = room_preset(ROOM_PRESETS[site])
-    _, _, dims = room_frame(model, site)
+    dims = room_frame(model, site).dimensions
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     try:

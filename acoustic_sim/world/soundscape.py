@@ -14,7 +14,7 @@ no caller touches the renderer.
 Positions are in metres, in one of two frames:
 
 - ``"room"``: the acoustic room's frame, the renderer's (origin at a corner of the scene's
-  air volume, axes the box's; :class:`~acoustic_sim.world.coupling.RoomFrame`), in which
+  air volume, axes the box's; :class:`~acoustic_sim.world.room_box.RoomFrame`), in which
   :attr:`Coupling.head_position <acoustic_sim.world.coupling.Coupling.head_position>` is given;
 - ``"world"``: MuJoCo's world frame (z up), e.g. a site's position read from the view.
 
