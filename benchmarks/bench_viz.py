@@ -1,6 +1,6 @@
 """Recording benchmark: what logging an episode to rerun costs, per frame and per minute.
 
-Scene: the composed ``cabin`` scene (``world.scene``; the cabin and robot assets attached the
+Scene: the composed ``cabin`` scene (``world.scenes``; the cabin and robot assets attached the
 same way where that module is not there yet). Per ear frame (62.5 Hz), everything an episode
 logs: body poses (the joints moving), three labelled sources, the head turning, the true and
 estimated directions, an existence map over the paper's direction grid (KEMAR), a (2, 128)

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from acoustic_sim.acoustics.hrtf import HRTF
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 
 DEG = np.pi / 180.0
@@ -53,7 +53,7 @@ def _controls(c: Coupling, k: int) -> None:
     if v.has_joint(names.WHEEL_JOINTS[0]):
         for i, wheel in enumerate(names.WHEEL_JOINTS):
             d.actuator(wheel).ctrl[0] = 1.5 * np.sin(2 * np.pi * t / 5.0) + (0.8 if i else -0.8) * np.sin(2 * np.pi * t / 7.0)
-        scene.place_mocap(m, d, names.PERSON_ROOT_BODY, [4.2 - 0.5 * np.sin(2 * np.pi * t / 8.0), 3.3, 0.0], -150.0)
+        scenes.place_mocap(m, d, names.PERSON_ROOT_BODY, [4.2 - 0.5 * np.sin(2 * np.pi * t / 8.0), 3.3, 0.0], -150.0)
 
 
 def _requests(c: Coupling, seconds: float) -> None:
@@ -127,11 +127,11 @@ def run(*, quick: bool = False) -> dict:
     """Run the benchmark; returns the JSON-ready result (``quick``: shorter, noisier runs)."""
     hrtf = HRTF.load("kemar")
     steps, repeats = (125, 3) if quick else (625, 7)
-    scenes = {name: _measure(name, hrtf, steps, repeats) for name in scene.SCENES}
+    measured = {name: _measure(name, hrtf, steps, repeats) for name in scenes.SCENES}
     return {
-        "world_step_ms": {name: r["world_step_ms"] for name, r in scenes.items()},
+        "world_step_ms": {name: r["world_step_ms"] for name, r in measured.items()},
         "targets": {"world_step_ms": TARGET_MS},
-        "scenes": scenes,
+        "scenes": measured,
         "control_step_ms": 16.0,
         "machine": {
             "cpus": os.cpu_count(),

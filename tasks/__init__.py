@@ -14,7 +14,7 @@ The classes' docstrings are the specifications.
 What the tasks share: :mod:`tasks.base` (the env: world, ears and pipeline per step),
 :mod:`tasks.cabin` (the two lever tasks), :mod:`tasks.actions` (the action vector),
 :mod:`tasks.levers` (the taught lever motions), :mod:`tasks.auditory` (the shared models),
-:mod:`tasks.soundscape` (sounds placed anywhere: ``env.schedule_sound``; the machinery and the
+:mod:`tasks.task_sounds` (sounds placed anywhere: ``env.schedule_sound``; the machinery and the
 ground truth are :mod:`acoustic_sim.world.soundscape`, stepped by :mod:`acoustic_sim.loop`)
 and :mod:`tasks.spec` (the docstrings' shared parts). Importing this package imports no MuJoCo
 or torch (the env modules load on first use: ``gymnasium.make`` or attribute access), so it

@@ -15,7 +15,7 @@ import functools
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 
 ROBOT_JOINTS: tuple[str, ...] = (*names.NECK_JOINTS, *names.EYE_JOINTS, *names.arm_joints("left"), *names.arm_joints("right"))
 """Joints of the proprioception and of the first action channels, in this order: neck yaw,
@@ -110,7 +110,7 @@ def action_layout(scene_name: str) -> ActionLayout:
     """The action layout of ``cabin`` (joints + two grasp commands) or ``room`` (joints +
     two wheel speeds); ranges are the actuators' control ranges, the rest pose the robot's
     ``home`` keyframe (read from a freshly loaded scene)."""
-    model, data, _ = scene.load_scene(scene_name)
+    model, data, _ = scenes.load_scene(scene_name)
     channels, home = [], {}
     for joint in ROBOT_JOINTS:
         act = model.actuator(joint)

@@ -31,7 +31,7 @@ Sounds at arbitrary places: :meth:`HearingTaskEnv.schedule_sound` (the loop's so
 The parts live in their own modules, re-exported here: the action vector
 (:mod:`tasks.actions`), the cabin's taught lever motions (:mod:`tasks.levers`), the shared
 auditory models (:mod:`tasks.auditory`), the task sounds and ground truth
-(:mod:`tasks.soundscape`) and the specification docstrings' shared parts (:mod:`tasks.spec`).
+(:mod:`tasks.task_sounds`) and the specification docstrings' shared parts (:mod:`tasks.spec`).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE
 from acoustic_sim.loop import HearingLoop, StepHearing
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.egonoise import MotorEgoNoise
 from acoustic_sim.world.view import WorldView
@@ -63,7 +63,7 @@ from tasks import spec
 from tasks.actions import ROBOT_JOINTS, ActionChannel, ActionLayout, action_layout
 from tasks.auditory import PROFILES, TorchThreads, load_hrtf, make_pipeline
 from tasks.levers import LEVERS, hold_lever, lever_arm_angles, lever_motion, settle
-from tasks.soundscape import Soundscape, TaskSound, outside_placement
+from tasks.task_sounds import Soundscape, TaskSound, outside_placement
 
 CLASSES: tuple[str, ...] = tuple(SOUND_CLASSES)
 """The six sound classes, in the order of the percept's probabilities."""
@@ -241,7 +241,7 @@ class HearingTaskEnv(gym.Env):
         render_ss, events_ss, mic_ss, task_ss = ss.spawn(4)
         task_rng = np.random.default_rng(task_ss)
         config = self._scene_config(task_rng)
-        model, data, info = scene.load_scene(self.scene_name, config=config)
+        model, data, info = scenes.load_scene(self.scene_name, config=config)
         self._setup_world(model, data, task_rng)
         view = WorldView(model, data)
         ego = MotorEgoNoise.from_view(view, sample_rate=self.ears.sample_rate)

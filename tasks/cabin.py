@@ -17,11 +17,11 @@ from gymnasium import spaces
 
 from acoustic_sim.acoustics import sounds
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from tasks.actions import ActionChannel
 from tasks.base import HearingTaskEnv
 from tasks.levers import hold_lever
-from tasks.soundscape import TaskSound
+from tasks.task_sounds import TaskSound
 
 
 class CabinLeverTask(HearingTaskEnv):
@@ -135,7 +135,7 @@ class CabinLeverTask(HearingTaskEnv):
 
     # -- episode ---------------------------------------------------------------------------------
     def _scene_config(self, rng):
-        return scene.CabinConfig(gear="P", brake_tooth=0)
+        return scenes.CabinConfig(gear="P", brake_tooth=0)
 
     def _setup_world(self, model, data, rng) -> None:
         hold_lever(model, data, self.side)
@@ -166,11 +166,11 @@ class CabinLeverTask(HearingTaskEnv):
 
     def _apply_special(self, channel: ActionChannel, value: float) -> None:
         side = channel.target.split(":", 1)[1]
-        holding = scene.is_grasping(self.model, self.data, side)
+        holding = scenes.is_grasping(self.model, self.data, side)
         if value > 0.0 and not holding:
-            scene.grasp(self.model, self.data, side)
+            scenes.grasp(self.model, self.data, side)
         elif value <= 0.0 and holding:
-            scene.release(self.model, self.data, side)
+            scenes.release(self.model, self.data, side)
             if side == self.side and self.release_s is None:
                 self.release_s = self.time_s  # the moment of the command: the start of this step
                 self.released_state = self._lever_state()
@@ -179,7 +179,7 @@ class CabinLeverTask(HearingTaskEnv):
         return {"grasp": spaces.MultiBinary(2)}
 
     def _task_obs(self) -> dict:
-        return {"grasp": np.array([scene.is_grasping(self.model, self.data, s) for s in names.ARM_SIDES], dtype=np.int8)}
+        return {"grasp": np.array([scenes.is_grasping(self.model, self.data, s) for s in names.ARM_SIDES], dtype=np.int8)}
 
     # -- evaluation ------------------------------------------------------------------------------
     def _evaluate(self) -> tuple[float, bool]:
@@ -225,7 +225,7 @@ class CabinLeverTask(HearingTaskEnv):
             "target_onset_s": None if self.target_onset_s is None else float(self.target_onset_s),
             "release_s": None if self.release_s is None else float(self.release_s),
             "reaction_s": None if self.reaction_s is None else float(self.reaction_s),
-            "holding": bool(scene.is_grasping(self.model, self.data, self.side)),
+            "holding": bool(scenes.is_grasping(self.model, self.data, self.side)),
         }
         info.update(self._lever_state())
         return info

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from tasks.base import HearingTaskEnv
 
 ROOM_SIZE = (6.0, 5.0)
@@ -119,7 +119,7 @@ class CallResponseEnv(HearingTaskEnv):
         self.person_bearing_deg = float(person_bearing)
         face = math.degrees(math.atan2(chair[1] - person[1], chair[0] - person[0]))
         face_speaker = math.degrees(math.atan2(chair[1] - speaker[1], chair[0] - speaker[0]))
-        return scene.RoomConfig(wheelchair_position=tuple(chair), wheelchair_yaw_deg=float(heading),
+        return scenes.RoomConfig(wheelchair_position=tuple(chair), wheelchair_yaw_deg=float(heading),
                                 person_position=tuple(person), person_yaw_deg=face, speaker_position=tuple(speaker),
                                 speaker_yaw_deg=face_speaker)
 

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 
 LEVERS = {"left": (names.GEARSHIFT_JOINT, names.GEARSHIFT_KNOB_SITE), "right": (names.BRAKE_JOINT, names.BRAKE_HANDLE_SITE)}
 """Each hand's lever in the cabin: (hinge joint, handle site)."""
@@ -31,7 +31,7 @@ def lever_motion(side: str, step_deg: float = 0.5, max_deg: float = 50.0) -> tup
     taught its motions): for lever angles 0, ``step_deg``, ... ``max_deg`` (deg from the rest
     angle of the scene's initial state, the gearshift in P and the brake down), the angles of
     the five arm joints that put the palm where it holds the handle, by position inverse
-    kinematics (:func:`acoustic_sim.world.scene.reach`) on a freshly loaded cabin, each
+    kinematics (:func:`acoustic_sim.world.scenes.reach`) on a freshly loaded cabin, each
     solution warm-started from the previous one. Angles the arm cannot reach end the table.
 
     Returns
@@ -42,7 +42,7 @@ def lever_motion(side: str, step_deg: float = 0.5, max_deg: float = 50.0) -> tup
     """
     if side not in LEVERS:
         raise ConfigError(f"side must be 'left' (gearshift) or 'right' (brake), got {side!r}")
-    model, data, _ = scene.load_scene("cabin")
+    model, data, _ = scenes.load_scene("cabin")
     joint, site = LEVERS[side]
     jid = model.joint(joint).id
     axis, anchor = data.xaxis[jid].copy(), data.xanchor[jid].copy()
@@ -53,7 +53,7 @@ def lever_motion(side: str, step_deg: float = 0.5, max_deg: float = 50.0) -> tup
         r = _rotation(axis, np.deg2rad(deg))
         target = anchor + r @ (handle - anchor)
         try:
-            q = scene.reach(model, data, side, target, max_error=0.01)
+            q = scenes.reach(model, data, side, target, max_error=0.01)
         except ConfigError:
             break
         data.qpos[qadr] = q  # warm start for the next angle
@@ -92,7 +92,7 @@ def hold_lever(model: mujoco.MjModel, data: mujoco.MjData, side: str) -> None:
         data.actuator(joint).ctrl[0] = q
     mujoco.mj_forward(model, data)
     settle(model, data, 0.2)
-    if not scene.grasp(model, data, side):
+    if not scenes.grasp(model, data, side):
         raise ConfigError(f"the {side} hand could not close on its lever at the start of the episode")
     settle(model, data, 0.1)
 

@@ -6,7 +6,7 @@ from scipy import signal
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.egonoise import EgoNoiseConfig, MotorEgoNoise
 from acoustic_sim.world.events import (
@@ -299,7 +299,7 @@ def let_go(c, joint):
 
 
 def cabin_without_audio(seed=0, **config):
-    model, data, _ = scene.load_scene("cabin", config=scene.CabinConfig(**config))
+    model, data, _ = scenes.load_scene("cabin", config=scenes.CabinConfig(**config))
     return Coupling(model, data, None, rng=np.random.default_rng(seed))
 
 

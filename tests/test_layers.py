@@ -61,3 +61,14 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("def f():\n    from policies import make_policy\n    import sys\n    sys.path.insert(0, '.')\n")
     assert (2, "policies") in _imports(bad)
+
+
+def test_module_names_are_distinct():
+    """One name, one module: a traceback or an import reads unambiguously (packages'
+    ``__init__.py`` aside)."""
+    seen: dict[str, list[str]] = {}
+    for top in ("acoustic_sim", "apps", "tasks", "policies", "benchmarks"):
+        for p in (ROOT / top).rglob("*.py"):
+            if p.name != "__init__.py":
+                seen.setdefault(p.name, []).append(str(p.relative_to(ROOT)))
+    assert {n: ps for n, ps in seen.items() if len(ps) > 1} == {}

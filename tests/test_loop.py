@@ -116,7 +116,7 @@ def test_the_outside_law_has_one_implementation():
     from acoustic_sim.world import names
     from acoustic_sim.world.coupling import Coupling
     from acoustic_sim.world.soundscape import Soundscape
-    from tasks.soundscape import outside_placement
+    from tasks.task_sounds import outside_placement
 
     c = Coupling.from_scene("cabin", rng=np.random.default_rng(0), ego_noise=False, background=False)
     sc = Soundscape(c)

@@ -1,4 +1,4 @@
-"""The composed scenes (``acoustic_sim.world.scene``): names, physics without warnings, the
+"""The composed scenes (``acoustic_sim.world.scenes``): names, physics without warnings, the
 acoustic rooms derived from the MuJoCo air volumes, grasping the levers with the hands,
 placing people, and the snapshot."""
 
@@ -16,17 +16,17 @@ from test_assets import assert_no_warnings
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import rotation_zyx
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 
 
 @pytest.fixture(scope="module")
 def cabin_model():
-    return scene.load_scene("cabin")
+    return scenes.load_scene("cabin")
 
 
 @pytest.fixture
 def cabin():
-    return scene.load_scene("cabin")
+    return scenes.load_scene("cabin")
 
 
 def exists(model, kind, name) -> bool:
@@ -65,15 +65,15 @@ ROOM_NAMES = [
 
 @pytest.mark.parametrize("name, expected", [("cabin", ROBOT_NAMES + CABIN_NAMES), ("room", ROBOT_NAMES + ROOM_NAMES)])
 def test_scene_has_every_name_of_the_contract(name, expected):
-    model, _, _ = scene.load_scene(name)
+    model, _, _ = scenes.load_scene(name)
     missing = [(kind.name, n) for kind, n in expected if not exists(model, kind, n)]
     assert not missing
 
 
-@pytest.mark.parametrize("name", scene.SCENES)
+@pytest.mark.parametrize("name", scenes.SCENES)
 def test_scene_runs_2s_with_random_controls_without_warnings(name, rng):
-    model, data, _ = scene.load_scene(name)
-    assert model.opt.timestep == scene.TIMESTEP == 0.002
+    model, data, _ = scenes.load_scene(name)
+    assert model.opt.timestep == scenes.TIMESTEP == 0.002
     most = 0
     lo, hi = model.actuator_ctrlrange.T
     for i in range(1000):
@@ -87,7 +87,7 @@ def test_scene_runs_2s_with_random_controls_without_warnings(name, rng):
 
 
 def test_build_scene_returns_an_editable_spec():
-    spec = scene.build_scene("room", config=scene.RoomConfig(person_position=(1.0, 4.0)))
+    spec = scenes.build_scene("room", config=scenes.RoomConfig(person_position=(1.0, 4.0)))
     assert isinstance(spec, mujoco.MjSpec)
     model = spec.compile()
     data = mujoco.MjData(model)
@@ -97,25 +97,25 @@ def test_build_scene_returns_an_editable_spec():
 
 def test_bad_scene_requests_are_config_errors():
     with pytest.raises(ConfigError, match="unknown scene 'garage'"):
-        scene.build_scene("garage")
+        scenes.build_scene("garage")
     with pytest.raises(ConfigError, match="RoomConfig"):
-        scene.build_scene("room", config=scene.CabinConfig())
+        scenes.build_scene("room", config=scenes.CabinConfig())
     with pytest.raises(ConfigError, match="wheelchair_position"):
-        scene.build_scene("room", config=scene.RoomConfig(wheelchair_position=(7.0, 2.0)))
+        scenes.build_scene("room", config=scenes.RoomConfig(wheelchair_position=(7.0, 2.0)))
     with pytest.raises(ConfigError, match="gear"):
-        scene.CabinConfig(gear="X")
+        scenes.CabinConfig(gear="X")
     with pytest.raises(ConfigError, match="brake_tooth"):
-        scene.CabinConfig(brake_tooth=8)
+        scenes.CabinConfig(brake_tooth=8)
     with pytest.raises(ConfigError, match="person_position"):
-        scene.RoomConfig(person_position=(1.0, float("nan")))
+        scenes.RoomConfig(person_position=(1.0, float("nan")))
 
 
 # -- the head in the scenes ------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", scene.SCENES)
+@pytest.mark.parametrize("name", scenes.SCENES)
 def test_at_zero_pose_the_ears_span_y_and_the_head_looks_along_x(name):
-    model, _, _ = scene.load_scene(name)
+    model, _, _ = scenes.load_scene(name)
     data = mujoco.MjData(model)  # reference pose: every joint at zero, the chair where it was placed
     mujoco.mj_forward(model, data)
     left, right = data.site(names.EAR_LEFT_SITE).xpos, data.site(names.EAR_RIGHT_SITE).xpos
@@ -142,7 +142,7 @@ def test_neck_turns_the_head_as_rotation_zyx_in_the_cabin(cabin):
 def test_cabin_acoustic_room_is_the_car_cabin_preset(cabin_model):
     model, _, info = cabin_model
     preset = room_preset("car_cabin")
-    room = scene.acoustic_room(model)
+    room = scenes.acoustic_room(model)
     assert room == info.room
     assert room.dimensions == pytest.approx(preset.dimensions, abs=1e-12)
     assert room.absorption == preset.absorption
@@ -154,7 +154,7 @@ def test_cabin_acoustic_room_is_the_car_cabin_preset(cabin_model):
 
 def test_alarm_speaker_is_about_0_8_m_in_front_of_the_head(cabin_model):
     model, data, info = cabin_model
-    speaker = scene.to_room(model, data.site(names.ALARM_SPEAKER_SITE).xpos)
+    speaker = scenes.to_room(model, data.site(names.ALARM_SPEAKER_SITE).xpos)
     offset = speaker - np.asarray(info.room.listener)
     assert 0.75 <= np.linalg.norm(offset) <= 0.85
     assert offset[0] > 0.75  # in front
@@ -169,27 +169,27 @@ def test_levers_are_on_the_correct_sides(cabin_model):
 
 
 def test_room_acoustic_room_is_the_lab_preset_around_the_wheelchair():
-    config = scene.RoomConfig(wheelchair_position=(4.0, 1.5), wheelchair_yaw_deg=30.0)
-    model, data, info = scene.load_scene("room", config=config)
+    config = scenes.RoomConfig(wheelchair_position=(4.0, 1.5), wheelchair_yaw_deg=30.0)
+    model, data, info = scenes.load_scene("room", config=config)
     preset = room_preset("lab")
     assert info.room.dimensions == pytest.approx(preset.dimensions)
     assert info.room.rt60_s == pytest.approx(preset.target_rt60_s, rel=1e-6)
-    ears = scene.to_room(model, (data.site(names.EAR_LEFT_SITE).xpos + data.site(names.EAR_RIGHT_SITE).xpos) / 2)
+    ears = scenes.to_room(model, (data.site(names.EAR_LEFT_SITE).xpos + data.site(names.EAR_RIGHT_SITE).xpos) / 2)
     np.testing.assert_allclose(info.room.listener, ears, atol=1e-9)
     assert info.room.listener[:2] == pytest.approx((4.0 + 0.12 * np.cos(np.pi / 6), 1.5 + 0.12 * np.sin(np.pi / 6)), abs=1e-9)
 
 
 def test_acoustic_room_needs_an_air_volume():
-    model = mujoco.MjModel.from_xml_path(str(scene.ASSET_DIR / "musashi_head" / "scene.xml"))
+    model = mujoco.MjModel.from_xml_path(str(scenes.ASSET_DIR / "musashi_head" / "scene.xml"))
     with pytest.raises(ConfigError, match="air-volume site"):
-        scene.acoustic_room(model)
+        scenes.acoustic_room(model)
 
 
 # -- levers in the scene: initial state and the hands ---------------------------------------------
 
 
 def test_cabin_starts_with_the_configured_gear_and_brake_and_holds_them():
-    model, data, _ = scene.load_scene("cabin", config=scene.CabinConfig(gear="R", brake_tooth=3))
+    model, data, _ = scenes.load_scene("cabin", config=scenes.CabinConfig(gear="R", brake_tooth=3))
     mujoco.mj_step(model, data, 500)
     assert np.rad2deg(data.joint(names.GEARSHIFT_JOINT).qpos[0]) == pytest.approx(15.0, abs=0.2)
     assert np.rad2deg(data.joint(names.BRAKE_JOINT).qpos[0]) == pytest.approx(22.0, abs=0.3)
@@ -205,11 +205,11 @@ def palm_to_handle(data, side):
 
 def reach_handle(model, data, side):
     """Put the palm on the handle with the arm's servos and close the hand."""
-    data.ctrl[arm_actuators(model, side)] = scene.reach(model, data, side, data.site(names.GRASP_TARGET_SITES[side]).xpos)
+    data.ctrl[arm_actuators(model, side)] = scenes.reach(model, data, side, data.site(names.GRASP_TARGET_SITES[side]).xpos)
     mujoco.mj_step(model, data, 500)
     assert palm_to_handle(data, side) < 0.03
-    assert scene.grasp(model, data, side)
-    assert scene.is_grasping(model, data, side)
+    assert scenes.grasp(model, data, side)
+    assert scenes.is_grasping(model, data, side)
 
 
 def test_left_hand_shifts_gear_and_lets_go(cabin):
@@ -223,11 +223,11 @@ def test_left_hand_shifts_gear_and_lets_go(cabin):
     for target_deg in (15.0, 30.0):  # P -> R -> N
         lean = np.deg2rad(22.5 - target_deg)  # the lever leans 22.5 deg forward in P
         target = pivot + radius * np.array([np.sin(lean), 0.0, np.cos(lean)]) + grip
-        data.ctrl[arm_actuators(model, "left")] = scene.reach(model, data, "left", target)
+        data.ctrl[arm_actuators(model, "left")] = scenes.reach(model, data, "left", target)
         mujoco.mj_step(model, data, 500)
         assert np.rad2deg(gear.qpos[0]) == pytest.approx(target_deg, abs=2.0)
-    scene.release(model, data, "left")
-    assert not scene.is_grasping(model, data, "left")
+    scenes.release(model, data, "left")
+    assert not scenes.is_grasping(model, data, "left")
     data.ctrl[arm_actuators(model, "left")] = 0.0  # the arm drops to its side
     mujoco.mj_step(model, data, 500)
     assert palm_to_handle(data, "left") > 0.2
@@ -246,11 +246,11 @@ def test_right_hand_pulls_the_brake_and_the_ratchet_holds_it(cabin):
     for angle in np.linspace(2.0, 27.0, 12):  # pull up past tooth 3's click (23 deg) in 1.8 s
         rise = np.deg2rad(10.0 + angle)  # the lever rises 10 deg above horizontal when down
         target = pivot + radius * np.array([np.cos(rise), 0.0, np.sin(rise)]) + grip
-        data.ctrl[arm_actuators(model, "right")] = scene.reach(model, data, "right", target)
+        data.ctrl[arm_actuators(model, "right")] = scenes.reach(model, data, "right", target)
         mujoco.mj_step(model, data, 75)
     mujoco.mj_step(model, data, 250)
     assert 23.2 < np.rad2deg(brake.qpos[0]) < 29.0  # past tooth 3, short of tooth 4
-    scene.release(model, data, "right")
+    scenes.release(model, data, "right")
     data.ctrl[arm_actuators(model, "right")] = 0.0
     mujoco.mj_step(model, data, 500)
     assert palm_to_handle(data, "right") > 0.2
@@ -262,28 +262,28 @@ def test_grasp_refuses_a_handle_out_of_reach_and_scenes_without_levers(cabin_mod
     model, _, _ = cabin_model
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)  # arms hanging straight down: the palms are far from the handles
-    assert not scene.grasp(model, data, "left")
-    assert not scene.is_grasping(model, data, "left")
+    assert not scenes.grasp(model, data, "left")
+    assert not scenes.is_grasping(model, data, "left")
     with pytest.raises(ConfigError, match="side"):
-        scene.grasp(model, data, "middle")
-    room_model, room_data, _ = scene.load_scene("room")
+        scenes.grasp(model, data, "middle")
+    room_model, room_data, _ = scenes.load_scene("room")
     with pytest.raises(ConfigError, match="no grasp"):
-        scene.grasp(room_model, room_data, "left")
+        scenes.grasp(room_model, room_data, "left")
 
 
 def test_reach_refuses_unreachable_targets(cabin_model):
     model, data, _ = cabin_model
     with pytest.raises(ConfigError, match="cannot reach"):
-        scene.reach(model, data, "left", (3.0, 1.0, 1.0))
+        scenes.reach(model, data, "left", (3.0, 1.0, 1.0))
     with pytest.raises(ConfigError, match="3 finite"):
-        scene.reach(model, data, "left", (1.0, 1.0))
+        scenes.reach(model, data, "left", (1.0, 1.0))
 
 
 # -- the room: driving and placing -----------------------------------------------------------------
 
 
 def test_wheelchair_carries_the_robot():
-    model, data, _ = scene.load_scene("room")
+    model, data, _ = scenes.load_scene("room")
     start = data.site(names.EAR_LEFT_SITE).xpos.copy()
     for joint in names.WHEEL_JOINTS:
         data.actuator(joint).ctrl[0] = 2.0  # 0.6 m/s
@@ -294,16 +294,16 @@ def test_wheelchair_carries_the_robot():
 
 
 def test_place_mocap_moves_the_person_and_refuses_other_bodies():
-    model, data, _ = scene.load_scene("room")
-    scene.place_mocap(model, data, names.PERSON_ROOT_BODY, (1.0, 1.0, 0.0), yaw_deg=90.0)
+    model, data, _ = scenes.load_scene("room")
+    scenes.place_mocap(model, data, names.PERSON_ROOT_BODY, (1.0, 1.0, 0.0), yaw_deg=90.0)
     mujoco.mj_forward(model, data)
     mouth = data.site(names.PERSON_MOUTH_SITE).xpos
     np.testing.assert_allclose(mouth[:2], (1.0, 1.095), atol=1e-9)  # facing +y, mouth 9.5 cm in front
     assert 1.5 < mouth[2] < 1.65
     with pytest.raises(ConfigError, match="not a mocap body"):
-        scene.place_mocap(model, data, names.WHEELCHAIR_CHASSIS_BODY, (1.0, 1.0, 0.0))
+        scenes.place_mocap(model, data, names.WHEELCHAIR_CHASSIS_BODY, (1.0, 1.0, 0.0))
     with pytest.raises(ConfigError, match="finite"):
-        scene.place_mocap(model, data, names.LOUDSPEAKER_BODY, (1.0, np.inf, 0.0))
+        scenes.place_mocap(model, data, names.LOUDSPEAKER_BODY, (1.0, np.inf, 0.0))
 
 
 # -- snapshot --------------------------------------------------------------------------------------

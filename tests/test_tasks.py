@@ -18,7 +18,7 @@ from gymnasium.utils.env_checker import check_env
 
 import tasks
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from policies import make_policy
 from tasks.actions import action_layout
 from tasks.call_response import CallResponseEnv
@@ -217,8 +217,8 @@ def test_call_response_field_of_view_and_occlusion():
     cam = env.data.cam(names.EYE_CAMERAS[1])
     forward = -cam.xmat.reshape(3, 3)[:, 2]
     spot = cam.xpos + 2.0 * forward
-    scene.place_mocap(env.model, env.data, names.PERSON_ROOT_BODY, [spot[0], spot[1], 0.0], 0.0)
-    scene.place_mocap(env.model, env.data, names.LOUDSPEAKER_BODY, [5.5, 0.5, 0.0], 0.0)
+    scenes.place_mocap(env.model, env.data, names.PERSON_ROOT_BODY, [spot[0], spot[1], 0.0], 0.0)
+    scenes.place_mocap(env.model, env.data, names.LOUDSPEAKER_BODY, [5.5, 0.5, 0.0], 0.0)
     import mujoco
 
     mujoco.mj_forward(env.model, env.data)
@@ -229,7 +229,7 @@ def test_call_response_field_of_view_and_occlusion():
     # the loudspeaker between the eye and the head hides it
     mid = cam.xpos + 1.0 * forward
     speaker_top = 1.17  # the cone's height above the floor is about the eyes'
-    scene.place_mocap(env.model, env.data, names.LOUDSPEAKER_BODY, [mid[0], mid[1], head[2] - speaker_top - 0.05], 0.0)
+    scenes.place_mocap(env.model, env.data, names.LOUDSPEAKER_BODY, [mid[0], mid[1], head[2] - speaker_top - 0.05], 0.0)
     mujoco.mj_forward(env.model, env.data)
     assert not env.person_in_view()[0]
     env.close()
@@ -277,7 +277,7 @@ def test_taught_lever_motions_reach_along_the_arcs():
 def _quiet_room():
     """The room scene's coupling with nothing but the task's sounds (no background, no ego-noise)."""
     from acoustic_sim.world.coupling import Coupling
-    from tasks.soundscape import Soundscape
+    from tasks.task_sounds import Soundscape
 
     c = Coupling.from_scene("room", rng=np.random.default_rng(0), ego_noise=False, background=False)
     return c, Soundscape(c)
@@ -332,7 +332,7 @@ def test_sounds_outside_the_room_play_through_the_wall():
 
 def test_schedule_sound_errors():
     from acoustic_sim.world.coupling import Coupling
-    from tasks.soundscape import Soundscape
+    from tasks.task_sounds import Soundscape
 
     c, sc = _quiet_room()
     head, t = c.head_position, c.time_s + 0.2

@@ -8,7 +8,7 @@ from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import block_length, frame_end_sample, rotation_zyx, vec_to_sph, world_to_head
-from acoustic_sim.world import names, scene
+from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.room_box import RoomFrame
 from acoustic_sim.world.egonoise import MotorEgoNoise
@@ -20,7 +20,7 @@ DEG = np.pi / 180.0
 
 @pytest.fixture(scope="module")
 def cabin():
-    return scene.load_scene("cabin")
+    return scenes.load_scene("cabin")
 
 
 def settle(c, seconds):
@@ -78,7 +78,7 @@ def test_view_errors(cabin):
         v.joint_states(["nowhere"])
     with pytest.raises(ConfigError, match="must be box-typed"):
         v.site_box(names.ALARM_SPEAKER_SITE)
-    room_model, room_data, _ = scene.load_scene("room")
+    room_model, room_data, _ = scenes.load_scene("room")
     rv = WorldView(room_model, room_data)
     with pytest.raises(ConfigError, match="no gearshift"):
         rv.gearshift_position()
@@ -94,13 +94,13 @@ def test_view_errors(cabin):
 # -- the room frame -----------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", scene.SCENES)
+@pytest.mark.parametrize("name", scenes.SCENES)
 def test_room_frame_matches_the_scene(name):
-    model, data, info = scene.load_scene(name)
+    model, data, info = scenes.load_scene(name)
     v = WorldView(model, data)
     site = names.CABIN_INTERIOR_SITE if name == "cabin" else names.ROOM_INTERIOR_SITE
     frame = RoomFrame.from_box(*v.site_box(site))
-    at_rest = scene.room_frame(model, site)  # read at qpos0, where the scenes place the box
+    at_rest = scenes.room_frame(model, site)  # read at qpos0, where the scenes place the box
     assert np.allclose(frame.origin, at_rest.origin) and np.allclose(frame.rotation, at_rest.rotation)
     assert np.allclose(frame.dimensions, at_rest.dimensions)
     assert np.allclose(frame.dimensions, info.room.dimensions)
@@ -144,7 +144,7 @@ def test_room_frame_rotated_box():
 
 def test_head_turn_left_puts_the_front_source_at_minus_90(kemar):
     """Turning the head 90 deg to the left puts the alarm, straight ahead, at azimuth -90."""
-    c = Coupling.from_scene("cabin", rng=np.random.default_rng(0), hrtf=kemar, scene_config=scene.CabinConfig(gear="R"),
+    c = Coupling.from_scene("cabin", rng=np.random.default_rng(0), hrtf=kemar, scene_config=scenes.CabinConfig(gear="R"),
                             background=False)
     r = c.renderer
 
@@ -189,7 +189,7 @@ def test_sources_move_with_their_bodies(kemar):
     c.events.schedule_call()
     c.step()
     first = c.source_positions()["voice"].copy()
-    scene.place_mocap(c.model, c.data, names.PERSON_ROOT_BODY, [3.0, 4.0, 0.0], yaw_deg=-90.0)
+    scenes.place_mocap(c.model, c.data, names.PERSON_ROOT_BODY, [3.0, 4.0, 0.0], yaw_deg=-90.0)
     c.step()
     moved = c.source_positions()["voice"]
     assert np.linalg.norm(moved - first) > 0.5
@@ -198,7 +198,7 @@ def test_sources_move_with_their_bodies(kemar):
 
 
 def test_gearshift_source_follows_the_knob():
-    model, data, _ = scene.load_scene("cabin")
+    model, data, _ = scenes.load_scene("cabin")
     c = Coupling(model, data, None, rng=np.random.default_rng(0))
     start = c.emitter_position("gearshift")
     dof = model.joint(names.GEARSHIFT_JOINT).dofadr[0]
@@ -254,7 +254,7 @@ def test_alarm_stops_on_its_sample(kemar):
 
     def episode(alarm_db):
         c = Coupling.from_scene("cabin", rng=np.random.default_rng(5), hrtf=kemar, background=False, ego_noise=False,
-                                late=False, scene_config=scene.CabinConfig(gear="R"), events_config=EventsConfig(alarm_db=alarm_db))
+                                late=False, scene_config=scenes.CabinConfig(gear="R"), events_config=EventsConfig(alarm_db=alarm_db))
         stop, audio = None, []
         dof = c.model.joint(names.GEARSHIFT_JOINT).dofadr[0]
         for k in range(int(3.0 * 62.5)):
@@ -298,7 +298,7 @@ def test_coupling_errors(cabin, kemar):
     model, data, _ = cabin
     with pytest.raises(ConfigError, match="not the scene's air volume"):
         Coupling(model, data, BinauralRenderer(kemar, room_preset("lab"), rng=np.random.default_rng(0)), rng=np.random.default_rng(0))
-    r = BinauralRenderer(kemar, scene.acoustic_room(model), rng=np.random.default_rng(0), background=False)
+    r = BinauralRenderer(kemar, scenes.acoustic_room(model), rng=np.random.default_rng(0), background=False)
     c = Coupling(model, mujoco.MjData(model), r, rng=np.random.default_rng(0))  # a fresh MjData is forwarded
     with pytest.raises(ConfigError, match="must follow one advance"):
         c.render()
@@ -309,7 +309,7 @@ def test_coupling_errors(cabin, kemar):
     r.render_block(100)
     with pytest.raises(ConfigError, match="frame boundary"):
         Coupling(model, data, r, rng=np.random.default_rng(0))
-    spec = scene.build_scene("cabin")
+    spec = scenes.build_scene("cabin")
     spec.option.timestep = 0.003
     odd = spec.compile()
     with pytest.raises(ConfigError, match="must divide"):

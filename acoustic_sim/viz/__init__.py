@@ -18,7 +18,7 @@ from acoustic_sim.viz.blueprint import default_blueprint
 from acoustic_sim.viz.episode import EpisodeRecorder
 from acoustic_sim.viz.play import check_recording, has_display, play
 from acoustic_sim.viz.recorder import Recorder, RecorderConfig, RecordingError
-from acoustic_sim.viz.scene import SceneGeometry
+from acoustic_sim.viz.scene_geometry import SceneGeometry
 
 __all__ = [
     "EpisodeRecorder", "Recorder", "RecorderConfig", "RecordingError", "SceneGeometry", "check_recording",

@@ -41,7 +41,7 @@ from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.errors import AcousticSimError, ConfigError
 from acoustic_sim.frames import SAMPLE_RATE
 from acoustic_sim.viz import blueprint as bp
-from acoustic_sim.viz.scene import SceneGeometry, default_view
+from acoustic_sim.viz.scene_geometry import SceneGeometry, default_view
 from acoustic_sim.viz.style import TRUE_COLOR, class_color, colormap_lut
 
 

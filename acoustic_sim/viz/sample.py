@@ -1,7 +1,7 @@
 """Realistic recorder input without running the auditory pipeline: for the benchmark, the
 tests, and the README screenshot.
 
-:func:`scene_model` gives the composed ``cabin`` or ``room`` scene (``world.scene``), or,
+:func:`scene_model` gives the composed ``cabin`` or ``room`` scene (``world.scenes``), or,
 where that module is not available, the cabin asset with the robot attached the same way
 (``car/`` and ``robot/`` prefixes). :class:`SyntheticEpisode` produces, per ear frame, what an
 episode hands to :meth:`Recorder.log_frame`, with the real shapes: percepts over the real
@@ -29,20 +29,20 @@ _GL_ERRORS = (mujoco.FatalError, RuntimeError, OSError, ImportError, AttributeEr
 
 
 def scene_model(name: str = "cabin") -> tuple[mujoco.MjModel, str]:
-    """The composed scene (``world.scene.load_scene``) and where it came from; the cabin and
-    robot assets attached by hand only where ``world.scene`` cannot be imported."""
+    """The composed scene (``world.scenes.load_scene``) and where it came from; the cabin and
+    robot assets attached by hand only where ``world.scenes`` cannot be imported."""
     try:
-        from acoustic_sim.world.scene import load_scene
+        from acoustic_sim.world.scenes import load_scene
     except ImportError:
         load_scene = None
     if load_scene is not None:
-        return load_scene(name)[0], f"acoustic_sim.world.scene.load_scene({name!r})"
+        return load_scene(name)[0], f"acoustic_sim.world.scenes.load_scene({name!r})"
     spec = mujoco.MjSpec()
     car = mujoco.MjSpec.from_file(str(ASSETS / "car_cabin" / "car_cabin.xml"))
     robot = mujoco.MjSpec.from_file(str(ASSETS / "musashi_head" / "musashi_head.xml"))
     spec.attach(car, prefix="car/", frame=spec.worldbody.add_frame())
     spec.attach(robot, prefix="robot/", frame=spec.worldbody.add_frame())
-    return spec.compile(), "assets/car_cabin + assets/musashi_head (stand-in: world.scene not available)"
+    return spec.compile(), "assets/car_cabin + assets/musashi_head (stand-in: world.scenes not available)"
 
 
 def render_images(model: mujoco.MjModel, n: int, *, width: int = 320, height: int = 240) -> list[np.ndarray] | None:

@@ -28,7 +28,7 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    name: "acoustic_sim.world.scene"
+    name: "acoustic_sim.world.scenes"
     for name in ("SCENES", "CabinConfig", "RoomConfig", "SceneInfo", "build_scene", "load_scene", "acoustic_room",
                  "room_frame", "to_room", "grasp", "release", "is_grasping", "reach", "place_mocap")
 }

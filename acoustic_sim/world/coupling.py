@@ -121,7 +121,7 @@ class Coupling:
     Parameters
     ----------
     model : mujoco.MjModel
-        A composed scene (``world.scene``); its timestep must divide the 16 ms control step.
+        A composed scene (``world.scenes``); its timestep must divide the 16 ms control step.
     data : mujoco.MjData
     renderer : acoustic_sim.acoustics.renderer.BinauralRenderer or None
         Renders the ears; its room must be the scene's air volume (same dimensions) and its
@@ -222,7 +222,7 @@ class Coupling:
         """Head orientation (head to room) after the last step."""
         self._sent_head: tuple[np.ndarray, np.ndarray] | None = None
         self.scene_info = None
-        """The :class:`~acoustic_sim.world.scene.SceneInfo` when built by :meth:`from_scene`."""
+        """The :class:`~acoustic_sim.world.scenes.SceneInfo` when built by :meth:`from_scene`."""
         self.last_events: list[SoundEvent] = []
         """The events of the last step."""
         self.reset_events()
@@ -245,13 +245,13 @@ class Coupling:
         Parameters
         ----------
         name : str
-            ``cabin`` or ``room`` (:data:`acoustic_sim.world.scene.SCENES`).
+            ``cabin`` or ``room`` (:data:`acoustic_sim.world.scenes.SCENES`).
         rng : numpy.random.Generator
             Spawns the renderer's generator (noise, late tails) and the events' (sounds).
         hrtf : str or HRTF
             The ears: an HRTF or a name for :meth:`HRTF.load` (default the bundled KEMAR).
         scene_config : CabinConfig or RoomConfig, optional
-            The scene's initial state (:func:`acoustic_sim.world.scene.load_scene`).
+            The scene's initial state (:func:`acoustic_sim.world.scenes.load_scene`).
         ego_noise : EgoNoiseConfig or bool
             ``True`` (default) for the default motor noise, a config for another, ``False``
             or ``None`` for none.
@@ -266,7 +266,7 @@ class Coupling:
         """
         from acoustic_sim.acoustics.hrtf import HRTF
         from acoustic_sim.acoustics.renderer import BinauralRenderer
-        from acoustic_sim.world.scene import load_scene
+        from acoustic_sim.world.scenes import load_scene
 
         if not isinstance(rng, np.random.Generator):
             raise ConfigError(f"Coupling.from_scene needs a numpy.random.Generator, got {type(rng).__name__}")

@@ -1,13 +1,13 @@
 """Names of the MuJoCo elements that the rest of the project relies on.
 
-The composed scenes (``scene.py``) attach each asset under a prefix; the view (``view.py``)
+The composed scenes (``scenes.py``) attach each asset under a prefix; the view (``view.py``)
 looks elements up by these full names and by nothing else, so an asset can be rebuilt
 without touching the code that reads it. World frame: MuJoCo's, z up. The robot faces +x.
 """
 
 from __future__ import annotations
 
-# Prefixes used by scene.py when attaching assets with MjSpec.attach(..., prefix=...).
+# Prefixes used by scenes.py when attaching assets with MjSpec.attach(..., prefix=...).
 ROBOT = "robot/"
 CAR = "car/"
 WHEELCHAIR = "wheelchair/"

@@ -72,7 +72,7 @@ def _hands_on_levers(model, data) -> None:
     import mujoco
 
     from acoustic_sim.world import names
-    from acoustic_sim.world.scene import reach
+    from acoustic_sim.world.scenes import reach
 
     for side in names.ARM_SIDES:
         angles = reach(model, data, side, data.site(names.GRASP_TARGET_SITES[side]).xpos)
@@ -126,7 +126,7 @@ def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Pat
     import mujoco
     from PIL import Image
 
-    from acoustic_sim.world.scene import load_scene
+    from acoustic_sim.world.scenes import load_scene
 
     model, data, _ = load_scene(scene)
     if scene == "cabin":

@@ -29,7 +29,7 @@ The soundscape also keeps the ground truth: the event records of the world's eve
 the scheduled sounds as they start (:meth:`Soundscape.begin_block`), and the sounds playing
 with their true directions from the head (:meth:`Soundscape.sounding`).
 
-(Moved from ``tasks/soundscape.py``, which keeps the tasks' names for it, in issue 30: the
+(Moved from ``tasks/soundscape.py`` (now ``tasks/task_sounds.py``), which keeps the tasks' names for it, in issue 30: the
 library's loop must own the sounds, and the library imports no task code.)
 """
 
@@ -58,7 +58,7 @@ the sounds are a task's, whoever schedules them)."""
 
 @dataclasses.dataclass
 class ScheduledSound:
-    """A sound played from a fixed point of the acoustic room (``tasks.soundscape.TaskSound``).
+    """A sound played from a fixed point of the acoustic room (``tasks.task_sounds.TaskSound``).
 
     Attributes
     ----------
