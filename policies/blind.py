@@ -6,20 +6,19 @@ without the direction test, so the distractors bite: its false releases measure 
 hearing the direction is worth.
 
 The scripted cabin policies also wait for quiet before moving the lever
-(:class:`policies.scripted.ScriptedReverseAlarm`), which needs no direction. The blind
-policies stay as the issue defines them (any alarm or click), but what that waiting is
-worth without the direction test was measured (paper models, seeds 200-299, a ``/tmp``
-variant: the scripted rules with every heard frame a vote for): ParkingBrake 47/100 with 53
-false releases, ReverseAlarm 55 with 45; these blind policies on the same seeds: 29 with
-70, 67 with 33; scripted: 94 with none, 96 with none. Waiting does not stand in for the
-direction: the gap to ``scripted`` is the direction's worth either way.
+(:class:`policies.cabin_policy.CabinLeverPolicy`), which needs no direction. The blind
+policies stay as the issue defines them (any alarm or click, no waiting); what the waiting
+is worth without the direction test (it does not stand in for the direction):
+docs/notes/blind_policy.md.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from policies.scripted import ScriptedParkingBrake, ScriptedReverseAlarm, TurnPolicy, heard
+from policies.scripted_cabin import ScriptedParkingBrake, ScriptedReverseAlarm
+from policies.task_policy import heard
+from policies.turn_policy import TurnPolicy
 
 
 class BlindReverseAlarm(ScriptedReverseAlarm):

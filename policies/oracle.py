@@ -9,25 +9,31 @@ from __future__ import annotations
 
 import numpy as np
 
-from policies.scripted import LeverPolicy, ScriptedParkingBrake, ScriptedReverseAlarm, TurnPolicy, fixed_azimuth
+from policies.lever_policy import LeverPolicy
+from policies.scripted_cabin import ScriptedParkingBrake, ScriptedReverseAlarm
+from policies.turn_policy import TurnPolicy, fixed_azimuth
 
 
-class OracleReverseAlarm(LeverPolicy):
+class OracleLeverPolicy(LeverPolicy):
+    """Move the lever; let go on the first step after the target sound has started (``info``)."""
+
+    def should_release(self, obs, info) -> bool:
+        return info.get("target_onset_s") is not None
+
+
+class OracleReverseAlarm(OracleLeverPolicy):
     """Push the gearshift; let go on the first step after the alarm has started (``info``)."""
 
     side = "left"
     rate_deg_s = ScriptedReverseAlarm.rate_deg_s  # the same taught push as the scripted policy's
     max_deg = ScriptedReverseAlarm.max_deg
 
-    def should_release(self, obs, info) -> bool:
-        return info.get("target_onset_s") is not None
-
 
 POLICY_CLASSES = {"reverse-alarm": OracleReverseAlarm}
 """Task name -> oracle policy class."""
 
 
-class OracleParkingBrake(OracleReverseAlarm):
+class OracleParkingBrake(OracleLeverPolicy):
     """Pull the brake; let go on the first step after the required tooth has clicked (``info``)."""
 
     side = "right"

@@ -8,7 +8,7 @@ the issue's targets (success at least 0.9, no false release, the median reaction
 these 20 episodes. Until 2026-12-04 (session 21) the cabin targets were expected failures
 with a floor below: the 16-bin fast SSDENet bank gave ReverseAlarm 18, 15 and 14 of 20 with
 one false release each for training seeds 0, 1 and 2. Since the line-of-sight law for
-outside sounds, the lateral rule of :class:`policies.scripted.ScriptedReverseAlarm` and the
+outside sounds, the lateral rule of :class:`policies.scripted_cabin.ScriptedReverseAlarm` and the
 jittered 32-bin fast bank (:data:`acoustic_sim.auditory.ssdenet_profiles.FAST`; measurements in
 docs/notes/ssdenet_recipes.md), the three training seeds give ReverseAlarm 19, 20 and 18
 and ParkingBrake 19, 18 and 19 of 20, none with a false release. CI trains its own models
@@ -207,7 +207,7 @@ def test_reverse_alarm_listening_pose_and_lateral_rule(envs):
     import math
 
     from acoustic_sim.frames import sph_to_vec
-    from policies.scripted import ScriptedReverseAlarm
+    from policies.scripted_cabin import ScriptedReverseAlarm
 
     env = envs["reverse-alarm"]
     pol = ScriptedReverseAlarm(env)
@@ -237,8 +237,8 @@ def test_parking_brake_hears_the_right_by_lateral_angle(envs):
     cone of confusion the estimate falls: the ratchet's pawl (-108 deg, -63 deg: lateral 26
     deg), its estimates and their mirror images count, the radio in front (-17 deg) and its
     mirror image behind (-164 deg, the traced early release) do not, nor anything on the left."""
-    from acoustic_sim.frames import sph_to_vec
-    from policies.scripted import ScriptedParkingBrake, lateral_deg
+    from acoustic_sim.frames import lateral_deg, sph_to_vec
+    from policies.scripted_cabin import ScriptedParkingBrake
 
     pol = ScriptedParkingBrake(envs["parking-brake"])
     assert lateral_deg(sph_to_vec(-90.0, 0.0)) == pytest.approx(-90.0)
@@ -252,12 +252,12 @@ def test_parking_brake_hears_the_right_by_lateral_angle(envs):
 
 
 def test_lever_waits_for_quiet_and_credits_only_its_own_clicks(envs):
-    """The cabin policies' "waiting for quiet" (:class:`policies.scripted.ScriptedReverseAlarm`):
+    """The cabin policies' "waiting for quiet" (:class:`policies.cabin_policy.CabinLeverPolicy`):
     the lever stops while another class masks and until ``masker_quiet_s`` of quiet, and
     for ``settle_s`` after its own class was last heard; a ratchet click from the right
     decides only within ``credit_s`` of the lever's last motion (fake observations: the
     policy reads only the percept)."""
-    from policies.scripted import ScriptedParkingBrake
+    from policies.scripted_cabin import ScriptedParkingBrake
     from tasks.base import CLASSES, CONTROL_DT
 
     env = envs["parking-brake"]
