@@ -203,9 +203,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     cli_auditory.add_parsers(sub)
     cli_world.add_parsers(sub)
-    from apps import runner
+    from apps import deaf_search, runner
 
     runner.add_parsers(sub)
+    deaf_search.add_parsers(sub)
     return parser
 
 

@@ -1,8 +1,8 @@
 """The ``run`` command: episodes of a hearing task with a policy, a summary and ``episodes.json``.
 
 :func:`run_episodes` runs ``episodes`` episodes of a task (``reverse-alarm``,
-``parking-brake``, ``call-response``) with a policy (``scripted``, ``oracle``, ``blind``),
-episode ``i`` with seed ``seed + i``, and writes ``DIR/episodes.json``: one record per
+``parking-brake``, ``call-response``) with a policy (``scripted``, ``oracle``, ``blind``, ``deaf``, ``random``,
+``random-hold`` or ``module:Class``), episode ``i`` with seed ``seed + i``, and writes ``DIR/episodes.json``: one record per
 episode (outcome, success, false release, reaction time, the events) and the summary
 ``success_rate``, ``median_reaction_s`` (target sound's start to letting go, or to the
 person in view, over the episodes that have one) and ``false_release_rate`` (episodes in
@@ -33,12 +33,13 @@ import numpy as np
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.files import check_writable_folder, write_text
+from policies import POLICIES
 
 TASK_NAMES = ("reverse-alarm", "parking-brake", "call-response")
 """Task names of the command line."""
 
-POLICY_NAMES = ("scripted", "oracle", "blind")
-"""Policy names of the command line."""
+POLICY_NAMES = POLICIES
+"""Policy names of the command line (besides ``module:Class``)."""
 
 
 def make_env(task: str, *, profile: str = "paper", **kwargs):
@@ -67,7 +68,7 @@ def run_episode(env, policy, seed: int, *, episode: int = 0, step_callback=None)
     """One episode; returns its record."""
     t0 = time.perf_counter()
     obs, info = env.reset(seed=seed)
-    policy.reset(obs, info)
+    policy.reset(obs, info, seed)
     if step_callback is not None:
         step_callback(env, episode, 0, obs, 0.0, False, False, info)
     events, steps, total = [], 0, 0.0
@@ -157,7 +158,7 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
     task : str
         ``reverse-alarm``, ``parking-brake`` or ``call-response``.
     policy : str
-        ``scripted``, ``oracle`` or ``blind``.
+        One of :data:`policies.POLICIES` or ``module:Class`` (see :mod:`policies`).
     episodes : int
         Number of episodes, >= 1; episode ``i`` uses seed ``seed + i``.
     seed : int
@@ -190,14 +191,17 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
     RecordingError
         If ``rrd`` cannot take a recording.
     """
-    if policy not in POLICY_NAMES:
-        raise ConfigError(f"unknown policy {policy!r}; valid: {', '.join(POLICY_NAMES)}")
+    if policy not in POLICY_NAMES and ":" not in str(policy):
+        raise ConfigError(f"unknown policy {policy!r}; valid: {', '.join(POLICY_NAMES)} or module:Class")
     if not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ConfigError(f"episodes must be a positive integer, got {episodes!r}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
     if task not in TASK_NAMES:
         raise ConfigError(f"unknown task {task!r}; valid: {', '.join(TASK_NAMES)}")
+    from policies import policy_class
+
+    policy_class(policy, task)  # an unloadable module:Class fails here, before anything is written
     out = check_writable_folder(out, what="--out")  # before the episodes run, not after
     recorder = None
     if rrd is not None:
@@ -284,7 +288,8 @@ def add_parsers(sub) -> None:
         "when the alarm sounds in front; parking-brake: pull the brake and let go when its ratchet sounds on the "
         "right; call-response: turn toward a person who calls until the person is in view) with a policy "
         "(scripted: the paper's behaviour from the percepts; oracle: from the ground truth; blind: ignores "
-        "directions). Episode i uses seed SEED + i. Writes DIR/episodes.json (one record per episode, "
+        "directions; deaf: the best open-loop behaviour, never listening; random, random-hold: random actions, "
+        "the second with the hands kept closed; or module:Class, your own). Episode i uses seed SEED + i. Writes DIR/episodes.json (one record per episode, "
         "success_rate, median_reaction_s, false_release_rate) and prints a summary table. With --rrd FILE, "
         "also a rerun recording of every episode (open it with `acoustic-sim play FILE`): all episodes are one "
         "recording, one after another; the frame timeline counts every step of the run, sim_time runs on with "
@@ -292,7 +297,9 @@ def add_parsers(sub) -> None:
         "log marks each episode's start (with its seed) and outcome.",
     )
     r.add_argument("task", choices=TASK_NAMES, help="which task")
-    r.add_argument("--policy", choices=POLICY_NAMES, default="scripted", help="which policy (default scripted)")
+    r.add_argument("--policy", default="scripted", metavar="POLICY",
+                   help=f"which policy: {', '.join(POLICY_NAMES)}, or module:Class (a class built as Class(env) "
+                   "with reset(obs, info, seed) and act(obs, info), importable from here); default scripted")
     r.add_argument("--episodes", type=int, default=20, help="number of episodes (default 20)")
     r.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
     r.add_argument("--out", type=Path, required=True, help="output folder for episodes.json")

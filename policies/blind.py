@@ -53,8 +53,8 @@ class BlindCallResponse(TurnPolicy):
     threshold = 0.5
     spin_s = 2.5
 
-    def reset(self, obs, info) -> None:
-        super().reset(obs, info)
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
         self.last_heard: float | None = None
 
     def act(self, obs, info) -> np.ndarray:

@@ -61,8 +61,8 @@ class CabinLeverPolicy(LeverPolicy):
     own_classes = ("gearshift",)
     """Classes the robot's own hands make (the gear lever's clunks): never a masker."""
 
-    def reset(self, obs, info) -> None:
-        super().reset(obs, info)
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
         self.evidence = Votes(self.window, self.votes)
         self._maskers = [i for i, c in enumerate(CLASSES) if c != self.label and c not in self.own_classes]
         self._last_move = 0

@@ -34,8 +34,8 @@ class LeverPolicy(TaskPolicy):
     max_deg = 30.0
     head_yaw_deg = 0.0
 
-    def reset(self, obs, info) -> None:
-        super().reset(obs, info)
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
         self.released = False
         self.hold = False
         self.motion_s = 0.0

@@ -35,8 +35,8 @@ class ScriptedCallResponse(TurnPolicy):
     look_s = 0.4
     same_deg = 30.0
 
-    def reset(self, obs, info) -> None:
-        super().reset(obs, info)
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
         self.frames: list[tuple[float, float, float]] = []  # (azimuth, mirrored azimuth, weight)
         self.gap = 0
         self.checked: list[float] = []

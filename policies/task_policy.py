@@ -28,8 +28,9 @@ class TaskPolicy:
         self.layout = self.env.layout
         self.steps = 0
 
-    def reset(self, obs, info) -> None:
-        """Start of an episode (the observation and info of ``env.reset``)."""
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        """Start of an episode: the observation and info of ``env.reset`` and, when the caller
+        knows it, the episode's seed (a policy that draws random numbers seeds them from it)."""
         self.steps = 0
 
     def act(self, obs, info) -> np.ndarray:

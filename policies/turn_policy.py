@@ -40,8 +40,8 @@ class TurnPolicy(TaskPolicy):
     stop_body_deg = 50.0
     wheel_speed = 1.5
 
-    def reset(self, obs, info) -> None:
-        super().reset(obs, info)
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
         self.target: float | None = None
         self.turning_body = False
 

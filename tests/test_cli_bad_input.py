@@ -204,7 +204,8 @@ PLAY = [
 ]
 RUN = [
     ("task-unknown", "fetch --out {out}/r"),
-    ("policy-unknown", "reverse-alarm --policy random --out {out}/r"),
+    ("policy-unknown", "reverse-alarm --policy telepathic --out {out}/r"),
+    ("policy-module-missing", "reverse-alarm --policy nowhere.module:Policy --out {out}/r"),
     ("episodes-zero", "reverse-alarm --episodes 0 --out {out}/r"),
     ("seed-negative", "reverse-alarm --seed -1 --out {out}/r"),
     ("no-camera-without-rrd", "reverse-alarm --no-camera --out {out}/r"),

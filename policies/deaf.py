@@ -1,0 +1,134 @@
+"""The deaf baseline: the best open-loop behaviour that never reads the percept.
+
+A task is worth having only if hearing decides it; the deaf policy bounds what a behaviour
+can do without ears. It reads no percept (no ``class_*``, ``audio`` or ``spectra``), only
+its own clock and, in the room, the proprioception and odometry that steer the gaze.
+
+ReverseAlarm, ParkingBrake
+    Move the lever along the taught motion at ``rate_deg_s`` to ``target_deg``, hold it
+    there ``wait_s``, then let go.
+CallResponse
+    Sweep the gaze around the room at ``turn_deg_s`` (``direction`` +1 left, -1 right), the
+    neck first and the wheelchair beyond it, until the episode ends.
+
+The class defaults are what :mod:`apps.deaf_search` found best on design seeds
+(``acoustic-sim deaf-search TASK`` reruns the search; every point's score is in
+``results/deaf_search/``, what they show in docs/notes/deaf_baseline.md); ``eval tasks``
+measures them on held-out seeds like every other policy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from policies.lever_policy import LeverPolicy
+from policies.turn_policy import TurnPolicy
+
+
+class DeafLeverPolicy(LeverPolicy):
+    """Move the lever to ``target_deg`` at ``rate_deg_s``, hold ``wait_s``, let go.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        The task env.
+    target_deg : float, optional
+        Lever angle (deg, within the taught motion's range) to move to; default the class's.
+    rate_deg_s : float, optional
+        Speed (deg/s, > 0) along the taught motion; default the class's.
+    wait_s : float, optional
+        Time (s, >= 0) to hold at ``target_deg`` before letting go; default the class's.
+    """
+
+    target_deg = 12.0
+    wait_s = 0.0
+
+    def __init__(self, env, *, target_deg: float | None = None, rate_deg_s: float | None = None,
+                 wait_s: float | None = None) -> None:
+        super().__init__(env)
+        self.target_deg = float(self.target_deg if target_deg is None else target_deg)
+        self.rate_deg_s = float(self.rate_deg_s if rate_deg_s is None else rate_deg_s)
+        self.wait_s = float(self.wait_s if wait_s is None else wait_s)
+        if not (self.rate_deg_s > 0 and self.wait_s >= 0 and self.target_deg >= 0):
+            raise ValueError(f"deaf lever policy needs target_deg >= 0, rate_deg_s > 0, wait_s >= 0, got "
+                             f"{self.target_deg}, {self.rate_deg_s}, {self.wait_s}")
+        self.max_deg = self.target_deg
+
+    def release_time_s(self) -> float:
+        """When the hand opens (s from the episode's start): the taught motion's delay, the
+        travel to ``target_deg``, the wait."""
+        return self.delay_s + self.target_deg / self.rate_deg_s + self.wait_s
+
+    def should_release(self, obs, info) -> bool:
+        return self.time_s >= self.release_time_s() - 1e-9
+
+
+class DeafReverseAlarm(DeafLeverPolicy):
+    """Push the gearshift to a fixed angle, hold, let go (never listening)."""
+
+    side = "left"
+    rate_deg_s = 16.0
+    target_deg = 12.0
+    wait_s = 0.0
+
+
+class DeafParkingBrake(DeafLeverPolicy):
+    """Pull the parking brake to a fixed angle, hold, let go (never listening)."""
+
+    side = "right"
+    rate_deg_s = 16.0
+    target_deg = 13.0
+    wait_s = 0.0
+
+
+class DeafCallResponse(TurnPolicy):
+    """Sweep the gaze around the room at a fixed rate and direction (never listening).
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        The task env.
+    turn_deg_s : float, optional
+        Sweep rate of the gaze's target (deg/s, > 0); default the class's.
+    direction : int, optional
+        +1 to sweep left (counter-clockwise from above), -1 right; default the class's.
+    """
+
+    turn_deg_s = 90.0
+    direction = 1
+    delay_s = 0.0
+
+    def __init__(self, env, *, turn_deg_s: float | None = None, direction: int | None = None) -> None:
+        super().__init__(env)
+        self.turn_deg_s = float(self.turn_deg_s if turn_deg_s is None else turn_deg_s)
+        self.direction = int(self.direction if direction is None else direction)
+        if not (self.turn_deg_s > 0 and self.direction in (-1, 1)):
+            raise ValueError(f"deaf call-response policy needs turn_deg_s > 0 and direction +-1, got "
+                             f"{self.turn_deg_s}, {self.direction}")
+
+    def act(self, obs, info) -> np.ndarray:
+        sweep = self.turn_deg_s * max(self.time_s - self.delay_s, 0.0)
+        self.target = self.direction * math.radians(sweep)
+        action = self.gaze_action(obs)
+        self.steps += 1
+        return action
+
+
+POLICY_CLASSES = {
+    "reverse-alarm": DeafReverseAlarm,
+    "parking-brake": DeafParkingBrake,
+    "call-response": DeafCallResponse,
+}
+"""Task name -> deaf policy class."""
+
+SEARCH_PARAMETERS = {
+    "reverse-alarm": ("target_deg", "rate_deg_s", "wait_s"),
+    "parking-brake": ("target_deg", "rate_deg_s", "wait_s"),
+    "call-response": ("turn_deg_s", "direction"),
+}
+"""The open-loop parameters :mod:`apps.deaf_search` chooses, per task."""
+
+__all__ = ["POLICY_CLASSES", "SEARCH_PARAMETERS", "DeafCallResponse", "DeafLeverPolicy", "DeafParkingBrake",
+           "DeafReverseAlarm"]
