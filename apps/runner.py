@@ -94,6 +94,8 @@ def run_episode(env, policy, seed: int, *, episode: int = 0, step_callback=None)
         "events": events,
         "wall_s": round(time.perf_counter() - t0, 3),
     }
+    if info.get("hidden"):
+        record["hidden"] = {k: _number(v) for k, v in info["hidden"].items()}
     for key in ("release_s", "found_s", "gear", "teeth", "calls", "person_bearing_deg"):
         if key in info:
             v = info[key]

@@ -211,6 +211,15 @@ class HearingTaskEnv(gym.Env):
     def _task_spaces(self) -> dict:
         return {}
 
+    def _draw_hidden(self, rng: np.random.Generator) -> dict:
+        """Draw the episode's hidden parameters (kept out of the observation; reported in
+        ``info``), from their own stream."""
+        return {}
+
+    def _events_config(self):
+        """The :class:`~acoustic_sim.world.events.EventsConfig` of the episode (None: the defaults)."""
+        return None
+
     def _scene_config(self, rng: np.random.Generator):
         raise NotImplementedError
 
@@ -238,8 +247,11 @@ class HearingTaskEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         ss = np.random.SeedSequence(int(self.np_random.integers(2**63)))
-        render_ss, events_ss, mic_ss, task_ss = ss.spawn(4)
+        # A fifth stream for the hidden per-episode parameters: spawning it leaves the first
+        # four (and so every episode without hidden variation) as they were.
+        render_ss, events_ss, mic_ss, task_ss, hidden_ss = ss.spawn(5)
         task_rng = np.random.default_rng(task_ss)
+        self.hidden = self._draw_hidden(np.random.default_rng(hidden_ss))
         config = self._scene_config(task_rng)
         model, data, info = scenes.load_scene(self.scene_name, config=config)
         self._setup_world(model, data, task_rng)
@@ -252,7 +264,8 @@ class HearingTaskEnv(gym.Env):
 
         renderer = BinauralRenderer(self.ears, room, rng=np.random.default_rng(render_ss), sample_rate=self.ears.sample_rate,
                                     background=True, late=True, ego_noise=ego)
-        self.coupling = Coupling(model, data, renderer, rng=np.random.default_rng(events_ss))
+        self.coupling = Coupling(model, data, renderer, rng=np.random.default_rng(events_ss),
+                                 events_config=self._events_config())
         self.coupling.scene_info = info
         self.model, self.data, self.view = model, data, self.coupling.view
         self.microphone = Microphone(rng=np.random.default_rng(mic_ss), sample_rate=self.ears.sample_rate)
@@ -427,6 +440,7 @@ class HearingTaskEnv(gym.Env):
             "sounding": sounding,
             "labels": labels,
             "outcome": self.outcome,
+            "hidden": dict(self.hidden),
         }
         info.update(self._task_info())
         return info

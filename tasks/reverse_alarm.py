@@ -5,7 +5,26 @@ from __future__ import annotations
 import numpy as np
 
 from acoustic_sim.acoustics import sounds
+from acoustic_sim.errors import ConfigError
+from acoustic_sim.world import scenes
+from acoustic_sim.world.events import EventsConfig
 from tasks.cabin import CabinLeverTask
+
+HIDDEN_VARIATION = {"reverse_deg": (7.0, 23.0), "alarm_delay_s": (0.1, 1.5)}
+"""Arguments that hide the decisive moment and place from everything but the ears: R anywhere
+in 7-23 deg (its capture zone is 4-9 deg wide, so no fixed lever angle is in R for half the
+cars), the alarm 0.1-1.5 s after R engages (a reversing buzzer's relay)."""
+
+
+def _range(what: str, value, limits: tuple, unit: str) -> tuple[float, float]:
+    """A (low, high) range within ``limits``, as floats."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a (low, high) pair of numbers ({unit}), got {value!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and limits[0] <= lo <= hi <= limits[1]):
+        raise ConfigError(f"{what} must satisfy {limits[0]:g} <= low <= high <= {limits[1]:g} ({unit}), got {value!r}")
+    return lo, hi
 
 
 class ReverseAlarmEnv(CabinLeverTask):
@@ -51,6 +70,14 @@ class ReverseAlarmEnv(CabinLeverTask):
     ``success_window_s`` (float, default 1.0): longest alarm-to-release time of a success, s.
     ``release_timeout_s`` (float, default 5.0): no release this long after the alarm fails, s.
     ``distractors`` (bool, default True): schedule the distractors.
+    ``reverse_deg`` ((low, high) deg, default (15, 15)): this car's R detent, drawn uniformly
+    per episode within 7..23 deg (:data:`acoustic_sim.world.scenes.REVERSE_DEG_RANGE`); the
+    two detent bumps around R move with it. (15, 15) is the paper's car.
+    ``alarm_delay_s`` ((low, high) s, default (0, 0)): the alarm's relay latency after R
+    engages, drawn uniformly per episode within 0..5 s; (0, 0) is the paper's (at once).
+    Both are hidden: absent from the observation, in ``info["hidden"]``.
+    :data:`HIDDEN_VARIATION` is the setting in which the lever angle and a clock no longer
+    tell when and where the alarm comes.
     {common_arguments}
     """
 
@@ -64,12 +91,26 @@ class ReverseAlarmEnv(CabinLeverTask):
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
                  max_episode_s: float | None = None, success_window_s: float = 1.0, release_timeout_s: float = 5.0,
-                 distractors: bool = True, audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
+                 distractors: bool = True, reverse_deg: tuple = (15.0, 15.0), alarm_delay_s: tuple = (0.0, 0.0),
+                 audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
                  image_size: tuple = (120, 160), torch_threads: int | None = 1) -> None:
+        self.reverse_deg = _range("reverse_deg", reverse_deg, scenes.REVERSE_DEG_RANGE, "deg")
+        self.alarm_delay_s = _range("alarm_delay_s", alarm_delay_s, (0.0, 5.0), "s")
         super().__init__(success_window_s=success_window_s, release_timeout_s=release_timeout_s, distractors=distractors,
                          render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
+
+    # -- the hidden car ---------------------------------------------------------------------------
+    def _draw_hidden(self, rng: np.random.Generator) -> dict:
+        # Both are drawn whatever the ranges, so that fixing one does not change the other.
+        return {"reverse_deg": float(rng.uniform(*self.reverse_deg)), "alarm_delay_s": float(rng.uniform(*self.alarm_delay_s))}
+
+    def _scene_config(self, rng):
+        return scenes.CabinConfig(gear="P", brake_tooth=0, reverse_deg=self.hidden["reverse_deg"])
+
+    def _events_config(self):
+        return EventsConfig(alarm_delay_s=self.hidden["alarm_delay_s"])
 
     # -- distractors ------------------------------------------------------------------------------
     def _draw_distractors(self, rng: np.random.Generator) -> dict:
@@ -123,4 +164,4 @@ class ReverseAlarmEnv(CabinLeverTask):
         return super()._judge_running()
 
 
-__all__ = ["ReverseAlarmEnv"]
+__all__ = ["HIDDEN_VARIATION", "ReverseAlarmEnv"]

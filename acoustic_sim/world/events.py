@@ -5,7 +5,7 @@ Physics makes sounds through mechanisms and requests:
 ==================  =================  ==============================  =======================
 event kind          sound class        emitter (source) / anchor site   when
 ==================  =================  ==============================  =======================
-``alarm_start``     ``reverse_alarm``  ``alarm`` / dashboard speaker   gearshift enters R (loops)
+``alarm_start``     ``reverse_alarm``  ``alarm`` / dashboard speaker   gearshift enters R (loops; after ``alarm_delay_s``)
 ``alarm_stop``      ``reverse_alarm``  ``alarm``                       gearshift leaves R
 ``gear_change``     ``gearshift``      ``gearshift`` / knob            lever enters another detent
 ``ratchet_click``   ``ratchet``        ``ratchet`` / brake pawl        the pawl snaps behind a tooth
@@ -164,6 +164,9 @@ class EventsConfig:
     alarm_draw_s : float
         Length (s) of the beeper signal drawn to find its period, 3-60; the loop holds
         every whole period it contains.
+    alarm_delay_s : float
+        Latency (s, 0-5) of the reverse alarm's relay and electronics: it starts this long
+        after the lever enters R, if the lever is still in R then (0: at once, the paper's).
     """
 
     alarm_db: float = 85.0
@@ -177,6 +180,7 @@ class EventsConfig:
     gearshift_draw_s: float = 8.0
     click_s: float = 0.035
     alarm_draw_s: float = 6.0
+    alarm_delay_s: float = 0.0
 
     def __post_init__(self) -> None:
         for f in ("alarm_db", "gearshift_db", "ratchet_db", "key_db", "voice_db", "loudspeaker_db", "horn_db"):
@@ -184,7 +188,7 @@ class EventsConfig:
             if not np.isfinite(v) or not -20.0 <= v <= 160.0:
                 raise ConfigError(f"EventsConfig.{f} must be -20..160 dB SPL at 1 m, got {v}")
         for f, lo, hi in (("transmission_loss_db", 0.0, 80.0), ("gearshift_draw_s", 4.0, 60.0), ("click_s", 0.005, 0.1),
-                          ("alarm_draw_s", 3.0, 60.0)):
+                          ("alarm_draw_s", 3.0, 60.0), ("alarm_delay_s", 0.0, 5.0)):
             v = getattr(self, f)
             if not np.isfinite(v) or not lo <= v <= hi:
                 raise ConfigError(f"EventsConfig.{f} must be {lo}..{hi}, got {v}")
@@ -704,8 +708,9 @@ class SoundEvents:
                         self._push(s, "gear_change", "gearshift", name)
                     self.gearshift.last_gear = g
                     if g == r and "alarm" in self.emitters:
-                        self._push(s, "alarm_start", "alarm", name)
+                        self._push(s + round(self.config.alarm_delay_s * self.sample_rate), "alarm_start", "alarm", name)
                 elif g == r and "alarm" in self.emitters:
+                    self._cancel_pending("alarm_start", after=s)  # left R before the relay closed
                     self._push(s, "alarm_stop", "alarm", name)
         if self.ratchet is not None:
             if brake_angles is None or pawl_angles is None:
@@ -722,6 +727,13 @@ class SoundEvents:
         self.next_sample = b1
         self.log.extend(out)
         return out
+
+    def _cancel_pending(self, kind: str, *, after: int) -> None:
+        """Drop the queued ``kind`` requests due after sample ``after``."""
+        kept = [q for q in self._queue if not (q[2] == kind and q[0] > after)]
+        if len(kept) != len(self._queue):
+            self._queue[:] = kept
+            heapq.heapify(self._queue)
 
     def _make(self, kind: str, emitter: str, sample: int, detail: str, signal: np.ndarray | None) -> SoundEvent | None:
         c = self.config

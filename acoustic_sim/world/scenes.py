@@ -57,6 +57,10 @@ DRIVING_KNEE_DEG = -55.0
 on the pedals instead of straight down."""
 
 
+REVERSE_DEG_RANGE = (7.0, 23.0)
+"""Range (deg) of :attr:`CabinConfig.reverse_deg`: R at least 7 deg from P (0) and from N (30)."""
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class CabinConfig:
     """Initial state of the ``cabin`` scene."""
@@ -67,9 +71,17 @@ class CabinConfig:
     brake_tooth: int = 0
     """Ratchet tooth the parking brake starts on: 0 = fully down, 1..7 = held on that tooth."""
 
+    reverse_deg: float = 15.0
+    """Lever angle (deg, 7..23) of the R detent: where this car's R is, between P (0 deg) and
+    N (30 deg). The two detent bumps around R sit midway to P and N, so the gate's feel
+    moves with it; the asset's own R is at 15 deg."""
+
     def __post_init__(self) -> None:
         if self.gear not in names.GEAR_NAMES:
             raise ConfigError(f"CabinConfig.gear must be one of {names.GEAR_NAMES}, got {self.gear!r}")
+        lo, hi = REVERSE_DEG_RANGE
+        if not (isinstance(self.reverse_deg, (int, float, np.integer, np.floating)) and lo <= self.reverse_deg <= hi):
+            raise ConfigError(f"CabinConfig.reverse_deg must be {lo:g}..{hi:g} deg (between P and N), got {self.reverse_deg!r}")
         n = len(names.BRAKE_TOOTH_ANGLES_DEG)
         if not isinstance(self.brake_tooth, (int, np.integer)) or not 0 <= self.brake_tooth <= n:
             raise ConfigError(f"CabinConfig.brake_tooth must be an integer 0..{n}, got {self.brake_tooth!r}")
@@ -177,9 +189,10 @@ def _cabin_world() -> mujoco.MjSpec:
     return spec
 
 
-def _build_cabin() -> mujoco.MjSpec:
+def _build_cabin(config: CabinConfig) -> mujoco.MjSpec:
     spec = _cabin_world()
     spec.attach(_asset("car_cabin", "car_cabin.xml"), prefix=names.CAR, frame=spec.worldbody.add_frame())
+    _place_reverse(spec, config.reverse_deg)
     spec.attach(_asset("musashi_head", "musashi_head.xml"), prefix=names.ROBOT, site=spec.site(names.CABIN_SEAT_SITE))
     for side in names.ARM_SIDES:
         half = np.deg2rad(DRIVING_KNEE_DEG) / 2.0
@@ -192,6 +205,26 @@ def _build_cabin() -> mujoco.MjSpec:
             solref=[0.01, 1.0], solimp=[0.95, 0.99, 0.001, 0.5, 2.0],
         )
     return spec
+
+
+GEAR_BUMP_FRAME_OFFSET_DEG = 22.5
+"""A bump at frame angle b (deg, about the lever body's y axis) is under the detent roller at
+lever angle b + 22.5 deg (the lever body's own tilt in the asset)."""
+
+
+def _place_reverse(spec: mujoco.MjSpec, reverse_deg: float) -> None:
+    """Put the R detent at ``reverse_deg``: the detent angles' numeric, and the two bumps
+    around R midway to P and N (the asset's P, N and D stay where they are)."""
+    numeric = spec.numeric(names.GEAR_DETENTS_NUMERIC)
+    detents = [float(v) for v in numeric.data]
+    r = names.GEAR_NAMES.index("R")
+    p, n = np.rad2deg(detents[r - 1]), np.rad2deg(detents[r + 1])
+    if reverse_deg == round(float(np.rad2deg(detents[r])), 4):
+        return  # the asset's own R: leave the spec as the asset wrote it
+    detents[r] = float(np.deg2rad(reverse_deg))
+    numeric.data = detents
+    for frame, between in (("gear_bump_pr", (p + reverse_deg) / 2.0), ("gear_bump_rn", (reverse_deg + n) / 2.0)):
+        spec.frame(names.CAR + frame).alt.euler = [0.0, between - GEAR_BUMP_FRAME_OFFSET_DEG, 0.0]
 
 
 def _check_floor_point(room: mujoco.MjsSite, what: str, xy) -> None:
@@ -245,7 +278,7 @@ def build_scene(name: str, *, config: CabinConfig | RoomConfig | None = None) ->
     config = expected() if config is None else config
     if not isinstance(config, expected):
         raise ConfigError(f"scene {name!r} takes a {expected.__name__}, got {type(config).__name__}")
-    return _build_cabin() if name == "cabin" else _build_room(config)
+    return _build_cabin(config) if name == "cabin" else _build_room(config)
 
 
 def _numeric(model: mujoco.MjModel, name: str) -> np.ndarray:
