@@ -214,6 +214,15 @@ RUN = [
     ("rrd-not-rrd", "reverse-alarm --out {out}/r --rrd {out}/r.txt"),
     ("rrd-under-a-file", "reverse-alarm --out {out}/r --rrd {bad}/afile/r.rrd"),
 ]
+DEAF_SEARCH = [
+    ("task-unknown", "fetch --out {out}/d"),
+    ("episodes-zero", "reverse-alarm --episodes 0 --out {out}/d"),
+    ("seed-held-out", "reverse-alarm --seed 3000 --episodes 2 --out {out}/d"),
+    ("seeds-past-the-design-range", "reverse-alarm --seed 298 --episodes 5 --out {out}/d"),
+    ("seed-negative", "reverse-alarm --seed -1 --out {out}/d"),
+    ("out-under-a-file", "reverse-alarm --out {bad}/afile/d"),
+    ("out-in-proc", f"reverse-alarm --out {PROC}/d"),
+]
 
 CASES = (
     [("render", f"--seconds 0.1 --out {{out}}/x.wav {a}" if "--out" not in a else f"--seconds 0.1 {a}", i)
@@ -229,6 +238,7 @@ CASES = (
     + [("snapshot", a, i) for i, a in SNAPSHOT]
     + [("play", a, i) for i, a in PLAY]
     + [("run", f"--profile fast {a}", i) for i, a in RUN]
+    + [("deaf-search", a, i) for i, a in DEAF_SEARCH]
 )
 
 

@@ -73,8 +73,8 @@ class CabinConfig:
 
     reverse_deg: float = 15.0
     """Lever angle (deg, 7..23) of the R detent: where this car's R is, between P (0 deg) and
-    N (30 deg). The two detent bumps around R sit midway to P and N, so the gate's feel
-    moves with it; the asset's own R is at 15 deg."""
+    N (30 deg). The two detent bumps around R move with it, symmetric about it, so the gate's
+    feel moves too; the asset's own R is at 15 deg."""
 
     def __post_init__(self) -> None:
         if self.gear not in names.GEAR_NAMES:
@@ -214,7 +214,7 @@ lever angle b + 22.5 deg (the lever body's own tilt in the asset)."""
 
 def _place_reverse(spec: mujoco.MjSpec, reverse_deg: float) -> None:
     """Put the R detent at ``reverse_deg``: the detent angles' numeric, and the two bumps
-    around R midway to P and N (the asset's P, N and D stay where they are)."""
+    around R (the asset's P, N and D detents stay where they are)."""
     numeric = spec.numeric(names.GEAR_DETENTS_NUMERIC)
     detents = [float(v) for v in numeric.data]
     r = names.GEAR_NAMES.index("R")
@@ -223,7 +223,10 @@ def _place_reverse(spec: mujoco.MjSpec, reverse_deg: float) -> None:
         return  # the asset's own R: leave the spec as the asset wrote it
     detents[r] = float(np.deg2rad(reverse_deg))
     numeric.data = detents
-    for frame, between in (("gear_bump_pr", (p + reverse_deg) / 2.0), ("gear_bump_rn", (reverse_deg + n) / 2.0)):
+    # Symmetric about R (its valley's bottom, where the roller rests, is R itself), half the
+    # way to the nearer of P and N.
+    w = min(reverse_deg - p, n - reverse_deg) / 2.0
+    for frame, between in (("gear_bump_pr", reverse_deg - w), ("gear_bump_rn", reverse_deg + w)):
         spec.frame(names.CAR + frame).alt.euler = [0.0, between - GEAR_BUMP_FRAME_OFFSET_DEG, 0.0]
 
 
