@@ -30,7 +30,11 @@ from acoustic_sim.frames import (
     vec_to_sph,
 )
 
+from acoustic_sim.registration import register_envs
+
 __version__ = "0.1.0"
+
+register_envs()  # the hearing tasks' Gymnasium ids (string entry points: nothing is imported)
 
 __all__ = [
     "AcousticSimError", "BinauralRenderer", "ConfigError", "DirectionGrid", "FRAME_RATE", "FULL_SCALE_PA", "HRTF",

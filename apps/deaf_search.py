@@ -3,7 +3,7 @@ that maximise success on design seeds.
 
 The deaf policy (:mod:`policies.deaf`) is only a bound on what hearing is worth if it is the
 *best* behaviour that never listens, not a strawman. So its parameters are searched: every
-point of the task's grid (:data:`GRIDS`; the lever's angle, speed and wait, or the room's
+point of the task's grid (:data:`GRIDS`; the lever's speed, wait and angle, or the room's
 sweep rate and direction) runs on the same design seeds (by default the first
 ``--episodes`` of 100-299, :data:`apps.eval_tasks.DESIGN_SEEDS`), and the point with the
 highest success wins (ties: the lower median reaction, then the grid's order). The
@@ -23,17 +23,18 @@ from acoustic_sim.errors import ConfigError
 from acoustic_sim.files import check_writable_folder, write_text
 
 GRIDS = {
-    "reverse-alarm": {"target_deg": (12.0, 14.0, 16.0, 18.0, 20.0), "rate_deg_s": (4.0, 8.0, 16.0),
-                      "wait_s": (0.0, 0.3, 0.6, 1.0)},
+    "reverse-alarm": {"rate_deg_s": (8.0, 16.0), "wait_s": tuple(round(0.2 * i, 1) for i in range(1, 9))},
     "parking-brake": {"target_deg": (9.0, 11.0, 13.0), "rate_deg_s": (4.0, 8.0, 16.0),
                       "wait_s": (0.0, 0.3, 0.6, 1.0)},
     "call-response": {"turn_deg_s": (15.0, 30.0, 60.0, 90.0), "direction": (1, -1)},
 }
 """Per task, the values of each open-loop parameter searched (their product is the grid).
-Lever angles (deg) span the R detent (ReverseAlarm: R at 15 deg, captured from 10.5) and the
-first brake tooth (8 deg, ParkingBrake's default requirement); speeds (deg/s) around the
-taught 8; waits (s) up to the tasks' success windows; the room's sweeps (deg/s) from a slow
-scan to the neck's speed, both ways."""
+ReverseAlarm: the push's speed (deg/s; the taught 8 and twice it) and the wait (s) from the
+felt detent to letting go, 0.2-1.6 s (the relay's latency is 0.1-1.5 s: a wait outside
+loses cars without winning any).
+ParkingBrake: lever angles (deg) around the first brake tooth (8 deg, the default
+requirement), speeds around the taught 8, waits up to the success window. CallResponse:
+sweeps (deg/s) from a slow scan to the neck's speed, both ways."""
 
 DEFAULT_EPISODES = 40
 """Design seeds per grid point by default (100-139)."""
@@ -114,7 +115,7 @@ def add_parsers(sub) -> None:
     p = sub.add_parser(
         "deaf-search",
         help="search the deaf baseline's open-loop parameters on design seeds",
-        description="Runs the deaf policy (never listening: move the lever to an angle at a speed, hold, let go; or "
+        description="Runs the deaf policy (never listening: push the lever at a speed to a felt detent or an angle, hold, let go; or "
         "sweep the gaze at a rate) at every point of the task's parameter grid on the same design seeds, and "
         "prints the best points; writes OUT/deaf_search.json. The winners are the deaf policy's defaults "
         "(policies/deaf.py). The percept is never read, so the fast auditory models are used.",

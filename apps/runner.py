@@ -152,7 +152,7 @@ def summarize(records: list[dict]) -> dict:
 
 
 def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile: str = "paper", progress: bool = True,
-                 step_callback=None, rrd=None, camera: bool = True) -> dict:
+                 step_callback=None, rrd=None, camera: bool = True, env_kwargs: dict | None = None) -> dict:
     """Run ``episodes`` episodes and write ``out/episodes.json``.
 
     Parameters
@@ -173,6 +173,8 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
         A progress bar over the episodes and the summary table on stdout.
     step_callback : callable, optional
         ``f(env, episode, step, obs, reward, terminated, truncated, info)`` (see the module).
+    env_kwargs : dict, optional
+        Constructor arguments of the task env (e.g. :data:`tasks.reverse_alarm.PAPER_CAR`).
     rrd : str or pathlib.Path, optional
         Record every episode into this ``.rrd`` file (see the module for the layout); it is
         checked and created before the first episode runs.
@@ -213,7 +215,7 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
     callback = _chain(step_callback, recorder)
     records = []
     try:
-        env = make_env(task, profile=profile)
+        env = make_env(task, profile=profile, **(env_kwargs or {}))
         from policies import make_policy
 
         pol = make_policy(policy, env)
@@ -307,6 +309,9 @@ def add_parsers(sub) -> None:
     r.add_argument("--out", type=Path, required=True, help="output folder for episodes.json")
     r.add_argument("--profile", choices=("paper", "fast"), default="paper",
                    help="auditory models: paper (default) or fast (small, for tests)")
+    r.add_argument("--paper-car", action="store_true",
+                   help="reverse-alarm only: the paper's car (R at 15 deg, the alarm as R engages, a 1 s window) "
+                   "instead of a car whose R and alarm latency are drawn per episode")
     r.add_argument("--rrd", type=Path, default=None, metavar="FILE",
                    help="also write a rerun recording (FILE ends in .rrd) of all the episodes, one after another "
                    "on the sim_time timeline, numbered on an episode timeline")
@@ -323,8 +328,15 @@ def cmd_run(args) -> int:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
     if args.no_camera and args.rrd is None:
         raise ConfigError("--no-camera only applies to a recording: add --rrd FILE")
+    env_kwargs = None
+    if args.paper_car:
+        if args.task != "reverse-alarm":
+            raise ConfigError("--paper-car only applies to reverse-alarm")
+        from tasks.reverse_alarm import PAPER_CAR
+
+        env_kwargs = PAPER_CAR
     result = run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile,
-                          rrd=args.rrd, camera=not args.no_camera)
+                          rrd=args.rrd, camera=not args.no_camera, env_kwargs=env_kwargs)
     print(f"wrote {args.out / 'episodes.json'}")
     if "rrd" in result:
         print(f"wrote {result['rrd']} (view it with: acoustic-sim play {result['rrd']})")

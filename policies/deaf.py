@@ -2,9 +2,14 @@
 
 A task is worth having only if hearing decides it; the deaf policy bounds what a behaviour
 can do without ears. It reads no percept (no ``class_*``, ``audio`` or ``spectra``), only
-its own clock and, in the room, the proprioception and odometry that steer the gaze.
+its own clock, its arm's joints and, in the room, the proprioception and odometry that steer
+the gaze.
 
-ReverseAlarm, ParkingBrake
+ReverseAlarm
+    Push the gearshift along the taught motion at ``rate_deg_s`` until the hand feels a
+    detent (its own arm's joint velocities: proprioception, not hearing), hold ``wait_s``,
+    let go.
+ParkingBrake
     Move the lever along the taught motion at ``rate_deg_s`` to ``target_deg``, hold it
     there ``wait_s``, then let go.
 CallResponse
@@ -23,7 +28,7 @@ import math
 
 import numpy as np
 
-from policies.lever_policy import LeverPolicy
+from policies.lever_policy import DetentFeel, LeverPolicy
 from policies.turn_policy import TurnPolicy
 
 
@@ -65,13 +70,48 @@ class DeafLeverPolicy(LeverPolicy):
         return self.time_s >= self.release_time_s() - 1e-9
 
 
-class DeafReverseAlarm(DeafLeverPolicy):
-    """Push the gearshift to a fixed angle, hold, let go (never listening)."""
+class DeafReverseAlarm(LeverPolicy):
+    """Push the gearshift until the hand feels a detent, hold it ``wait_s``, let go.
+
+    The car's R moves per episode (:data:`tasks.reverse_alarm.HIDDEN_VARIATION`), so no fixed
+    lever angle finds it; the hand does (:class:`~policies.lever_policy.DetentFeel`: R's
+    valley is felt in every car, and leaving P too when R is above 20 deg). What it cannot
+    feel is when the alarm's relay starts the alarm: ``wait_s`` is the best guess.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        The task env.
+    rate_deg_s : float, optional
+        Speed (deg/s, > 0) along the taught motion; default the class's.
+    wait_s : float, optional
+        Time (s, >= 0) from feeling the detent to letting go; default the class's.
+    """
 
     side = "left"
     rate_deg_s = 16.0
-    target_deg = 12.0
-    wait_s = 0.0
+    max_deg = 30.0
+    wait_s = 0.4
+
+    def __init__(self, env, *, rate_deg_s: float | None = None, wait_s: float | None = None) -> None:
+        super().__init__(env)
+        self.rate_deg_s = float(self.rate_deg_s if rate_deg_s is None else rate_deg_s)
+        self.wait_s = float(self.wait_s if wait_s is None else wait_s)
+        if not (self.rate_deg_s > 0 and self.wait_s >= 0):
+            raise ValueError(f"deaf ReverseAlarm policy needs rate_deg_s > 0, wait_s >= 0, got {self.rate_deg_s}, "
+                             f"{self.wait_s}")
+        self.feel = DetentFeel(self.side)
+
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
+        self.feel.reset(obs)
+        self.felt_s: float | None = None
+
+    def should_release(self, obs, info) -> bool:
+        if self.feel.push(obs, self.moved) and self.felt_s is None:
+            self.felt_s = self.time_s
+        self.hold = self.felt_s is not None
+        return self.hold and self.time_s - self.felt_s >= self.wait_s - 1e-9
 
 
 class DeafParkingBrake(DeafLeverPolicy):
@@ -124,7 +164,7 @@ POLICY_CLASSES = {
 """Task name -> deaf policy class."""
 
 SEARCH_PARAMETERS = {
-    "reverse-alarm": ("target_deg", "rate_deg_s", "wait_s"),
+    "reverse-alarm": ("rate_deg_s", "wait_s"),
     "parking-brake": ("target_deg", "rate_deg_s", "wait_s"),
     "call-response": ("turn_deg_s", "direction"),
 }

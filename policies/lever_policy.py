@@ -11,8 +11,59 @@ import math
 
 import numpy as np
 
+from acoustic_sim.world import names
 from policies.task_policy import TaskPolicy
+from tasks.actions import ROBOT_JOINTS
 from tasks.base import CONTROL_DT, lever_arm_angles
+
+
+class DetentFeel:
+    """Feel a lever's detents through the arm holding it (proprioception, no hearing).
+
+    Where the lever's roller drops into a detent's valley, the detent's spring pulls the lever
+    and the hand with it: an arm joint's velocity changes by 0.008-0.033 rad/s in one step
+    (R anywhere in 7-23 deg, pushed at 8 deg/s), against under 0.003 along a steady push. The
+    arm's own starts and stops change it as much for about 0.1 s, so a change counts only
+    after ``steady_s`` of uninterrupted commanded motion
+    (:attr:`LeverPolicy.moved`). Leaving P is felt too when R is far
+    from it (R above 20 deg): a feel says *a* detent, not which.
+
+    Parameters
+    ----------
+    side : str
+        The arm on the lever (``"left"`` or ``"right"``).
+    threshold_rad_s : float
+        The velocity change (rad/s) between two steps that counts as a detent.
+    steady_s : float
+        Uninterrupted motion (s) before a change counts.
+    refractory_s : float
+        Time (s) after a feel before the next can count (one detent, one feel).
+    """
+
+    def __init__(self, side: str, *, threshold_rad_s: float = 0.006, steady_s: float = 0.2,
+                 refractory_s: float = 0.3) -> None:
+        self.joints = [i for i, j in enumerate(ROBOT_JOINTS) if j in names.arm_joints(side)]
+        self.threshold_rad_s, self.steady_s, self.refractory_s = float(threshold_rad_s), float(steady_s), float(refractory_s)
+
+    def reset(self, obs) -> None:
+        self._last = np.asarray(obs["joint_vel"][self.joints], dtype=float)
+        self._moving_s = 0.0
+        self._since_feel_s = float("inf")
+        self.felt = 0  # detents felt this episode
+
+    def push(self, obs, moving: bool) -> bool:
+        """One step's observation, and whether the lever was commanded to move in it; True
+        when a detent is felt in this step."""
+        vel = np.asarray(obs["joint_vel"][self.joints], dtype=float)
+        jump = float(np.max(np.abs(vel - self._last)))
+        self._last = vel
+        self._moving_s = self._moving_s + CONTROL_DT if moving else 0.0
+        self._since_feel_s += CONTROL_DT
+        if self._moving_s >= self.steady_s - 1e-9 and jump >= self.threshold_rad_s and self._since_feel_s >= self.refractory_s:
+            self._since_feel_s = 0.0
+            self.felt += 1
+            return True
+        return False
 
 
 class LeverPolicy(TaskPolicy):
@@ -39,6 +90,7 @@ class LeverPolicy(TaskPolicy):
         self.released = False
         self.hold = False
         self.motion_s = 0.0
+        self.moved = False  # whether the last action moved the lever's command
         self._arm = lever_arm_angles(self.side, 0.0)
 
     def lever_target_deg(self) -> float:
@@ -51,10 +103,12 @@ class LeverPolicy(TaskPolicy):
     def act(self, obs, info) -> np.ndarray:
         if not self.released and self.should_release(obs, info):
             self.released = True
+        before = self.lever_target_deg()
         if not self.released:
             if not self.hold:
                 self.motion_s += CONTROL_DT
             self._arm = lever_arm_angles(self.side, self.lever_target_deg())
+        self.moved = not self.released and self.lever_target_deg() != before
         values = self.layout.arm(self.side, self._arm)
         values["neck_yaw"] = math.radians(self.head_yaw_deg)
         values[f"grasp_{self.side}"] = -1.0 if self.released else 1.0
@@ -62,4 +116,4 @@ class LeverPolicy(TaskPolicy):
         return self.layout.action(values)
 
 
-__all__ = ["LeverPolicy"]
+__all__ = ["DetentFeel", "LeverPolicy"]

@@ -22,11 +22,20 @@ class OracleLeverPolicy(LeverPolicy):
 
 
 class OracleReverseAlarm(OracleLeverPolicy):
-    """Push the gearshift; let go on the first step after the alarm has started (``info``)."""
+    """Push the gearshift until the lever is at this car's R (``info["hidden"]``), hold it
+    there, let go on the first step after the alarm has started (``info``)."""
 
     side = "left"
     rate_deg_s = ScriptedReverseAlarm.rate_deg_s  # the same taught push as the scripted policy's
     max_deg = ScriptedReverseAlarm.max_deg
+    stop_before_deg = 0.3
+    """How far (deg) before R's valley the push stops: the lever lags the command by about
+    0.1 deg and the detent's spring pulls it the rest of the way."""
+
+    def should_release(self, obs, info) -> bool:
+        r = info.get("hidden", {}).get("reverse_deg", 15.0)
+        self.hold = self.hold or (info.get("gear") == "R" and info.get("gear_deg", 0.0) >= r - self.stop_before_deg)
+        return super().should_release(obs, info)
 
 
 POLICY_CLASSES = {"reverse-alarm": OracleReverseAlarm}

@@ -1,8 +1,9 @@
 """The scripted cabin policies: ReverseAlarm and ParkingBrake, from the observation only.
 
 ReverseAlarm
-    Push the gearshift along the taught motion (toward D, through R) until the reverse alarm
-    is heard *from the front*, then let go.
+    Push the gearshift along the taught motion (toward D, through R), holding and listening
+    at each detent the hand feels, until the reverse alarm is heard *from the front*, then
+    let go.
 ParkingBrake
     Pull the brake lever along the taught motion until the ratchet is heard *from the right*,
     then let go.
@@ -17,16 +18,22 @@ import numpy as np
 
 from acoustic_sim.frames import in_lateral_region, lateral_deg
 from policies.cabin_policy import CabinLeverPolicy
+from policies.lever_policy import DetentFeel
 from policies.task_policy import head_pose
+from tasks.base import CONTROL_DT
 
 
 class ScriptedReverseAlarm(CabinLeverPolicy):
-    """Push the gearshift until the reverse alarm is heard from the front, then let go.
+    """Push the gearshift; at each detent the hand feels, hold and listen; let go when the
+    reverse alarm is heard from the front.
 
-    Parameters (class level): ``head_yaw_deg`` (the neck's yaw while listening, deg, + left),
-    ``lateral_range_deg`` (the lateral angles from the turned head accepted as the alarm's,
-    deg, + left), ``elevation_deg`` (their elevations in the car's frame, deg); the rest as
-    for :class:`~policies.cabin_policy.CabinLeverPolicy`.
+    Where and when. The car's R and its alarm's relay latency are hidden and vary per
+    episode (:data:`tasks.reverse_alarm.HIDDEN_VARIATION`). The hand feels a detent
+    (:class:`~policies.lever_policy.DetentFeel`) but not which one, so at each it holds the
+    lever and listens for ``listen_s`` of unmasked time (the latency's upper bound and a
+    beep); heard from the front, the alarm says this is R and now. Not heard, the push goes
+    on. Heard while pushing (a short latency), the lever stops at once, as
+    :class:`~policies.cabin_policy.CabinLeverPolicy` does.
 
     Front and back. Interaural features give a sound's lateral angle (its angle to the
     head's median plane), not where it lies on the cone of confusion: with KEMAR's
@@ -34,9 +41,7 @@ class ScriptedReverseAlarm(CabinLeverPolicy):
     So the robot listens with its head turned 22 deg to the right (``head_yaw_deg``), which
     puts the dashboard speaker 22 deg left of the head's median plane, and accepts a
     lateral angle of 5-36 deg to the left (``lateral_range_deg``), not above 20 deg up
-    (``elevation_deg``): the front of the car and its mirror image behind on the left. A
-    beeper straight behind the car is then at lateral -22 deg, those beside it on the left
-    at 70-90 deg.
+    (``elevation_deg``).
 
     Measurements (the poses, regions and waits compared, seed ranges, held-out runs):
     docs/notes/alarm_policy.md.
@@ -54,12 +59,36 @@ class ScriptedReverseAlarm(CabinLeverPolicy):
     dashboard speaker is 22 deg left of the head turned 22 deg right."""
     elevation_deg = (-90.0, 20.0)
     """The region's elevations (deg, + up, car frame): the dashboard speaker is 10 deg below
-    the ears; an estimate more than 30 deg above that is not the alarm; below, no bound (its
-    beeps are placed down to -50 deg; measurements: docs/notes/alarm_policy.md)."""
-    credit_s = 1.0
-    """How long after the hand stopped the alarm can still be its doing: the alarm sounds as
-    long as the lever stays in R, one beep every 0.8-1.1 s, so a beep in the second after the
-    hand stopped may be the first one the ears place."""
+    the ears; an estimate more than 30 deg above that is not the alarm."""
+    credit_s = 3.0
+    """How long after the hand last moved or listened at a detent the alarm can still be its
+    doing: the relay's latency (at most 1.5 s) and a beep period (0.8-1.1 s), the first beep
+    placed perhaps only in the second one."""
+    listen_s = 2.0
+    """Unmasked time (s) held at a felt detent before pushing on: the relay's latency (at
+    most 1.5 s, :data:`tasks.reverse_alarm.HIDDEN_VARIATION`) and the first beep."""
+
+    def reset(self, obs, info, seed: int | None = None) -> None:
+        super().reset(obs, info, seed)
+        self.feel = DetentFeel(self.side)
+        self.feel.reset(obs)
+        self.listened_s: float | None = None  # unmasked time listened at the felt detent; None: pushing
+
+    def should_release(self, obs, info) -> bool:
+        if self.feel.push(obs, self.moved):
+            self.listened_s = 0.0
+        listening = self.listened_s is not None
+        if listening:
+            self._last_move = self.steps  # what is heard while the hand holds at a detent is its doing
+        decided = super().should_release(obs, info)
+        if listening:
+            if not self.maskers:
+                self.listened_s += CONTROL_DT
+            if self.listened_s < self.listen_s - 1e-9:
+                self.hold, self.waiting = True, "listening"
+            else:
+                self.listened_s = None  # nothing from the front: not R, or not yet; push on
+        return decided
 
     def accept(self, direction: np.ndarray, obs) -> bool:
         """The alarm's region: the estimate's lateral angle from the turned head (its angle to

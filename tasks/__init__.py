@@ -8,7 +8,8 @@ id                              class                                  scene
 ``acoustic_sim/CallResponse-v0``  :class:`tasks.call_response.CallResponseEnv`  room (wheelchair)
 ==============================  =====================================  ======================
 
-``gymnasium.make("acoustic_sim/ReverseAlarm-v0", profile="fast")`` after ``import tasks``.
+``gymnasium.make("acoustic_sim/ReverseAlarm-v0", profile="fast")`` after ``import acoustic_sim``
+(or ``import tasks``; the ids and their TimeLimits: :mod:`acoustic_sim.registration`).
 The classes' docstrings are the specifications.
 
 What the tasks share: :mod:`tasks.base` (the env: world, ears and pipeline per step),
@@ -25,24 +26,17 @@ from __future__ import annotations
 
 import importlib
 
-from gymnasium.envs.registration import register, registry
-
+from acoustic_sim.registration import TASK_IDS, register_envs
 from acoustic_sim.world.snapshot import choose_gl_backend
 
 # MuJoCo fixes its OpenGL backend when it is first imported; the task modules import it, so
 # an offscreen one (EGL or OSMesa, unless MUJOCO_GL says otherwise) is chosen here, first.
 choose_gl_backend()
 
-TASKS = {
-    "reverse-alarm": ("acoustic_sim/ReverseAlarm-v0", "tasks.reverse_alarm:ReverseAlarmEnv"),
-    "parking-brake": ("acoustic_sim/ParkingBrake-v0", "tasks.parking_brake:ParkingBrakeEnv"),
-    "call-response": ("acoustic_sim/CallResponse-v0", "tasks.call_response:CallResponseEnv"),
-}
+TASKS = {task: (env_id, entry) for task, (env_id, entry, _) in TASK_IDS.items()}
 """Command-line task name -> (Gymnasium id, entry point)."""
 
-for _id, _entry in TASKS.values():
-    if _id not in registry:
-        register(id=_id, entry_point=_entry)
+register_envs()
 
 _LAZY = {
     "ReverseAlarmEnv": "tasks.reverse_alarm",

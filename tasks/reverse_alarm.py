@@ -11,9 +11,20 @@ from acoustic_sim.world.events import EventsConfig
 from tasks.cabin import CabinLeverTask
 
 HIDDEN_VARIATION = {"reverse_deg": (7.0, 23.0), "alarm_delay_s": (0.1, 1.5)}
-"""Arguments that hide the decisive moment and place from everything but the ears: R anywhere
-in 7-23 deg (its capture zone is 4-9 deg wide, so no fixed lever angle is in R for half the
-cars), the alarm 0.1-1.5 s after R engages (a reversing buzzer's relay)."""
+"""The defaults, which hide the decisive moment and place from everything but the ears: R
+anywhere in 7-23 deg (its capture zone is 4-9 deg wide, so no fixed lever angle is in R for
+half the cars), the alarm 0.1-1.5 s after R engages (a reversing buzzer's relay)."""
+
+SUCCESS_WINDOW_S = 0.4
+"""The default success window (s). The hand feels R's detent (:class:`policies.lever_policy.
+DetentFeel`), so a deaf policy knows when R engaged and lacks only the relay's latency: letting
+go a fixed time after the feel succeeds for a share window / 1.4 s of the latencies at best
+(0.71 with a 1 s window, 0.29 with 0.4 s); a listening policy reacts in about 0.1 s.
+Measurements: docs/notes/deaf_baseline.md."""
+
+PAPER_CAR = {"reverse_deg": (15.0, 15.0), "alarm_delay_s": (0.0, 0.0), "success_window_s": 1.0}
+"""Arguments for the paper's car: R at 15 deg, the alarm at once, a 1 s window (the setting
+before the hidden car; the lever angle and a clock tell all)."""
 
 
 def _range(what: str, value, limits: tuple, unit: str) -> tuple[float, float]:
@@ -67,17 +78,18 @@ class ReverseAlarmEnv(CabinLeverTask):
 
     Arguments
     ---------
-    ``success_window_s`` (float, default 1.0): longest alarm-to-release time of a success, s.
+    ``success_window_s`` (float, default 0.4): longest alarm-to-release time of a success, s
+    (:data:`SUCCESS_WINDOW_S` says why 0.4).
     ``release_timeout_s`` (float, default 5.0): no release this long after the alarm fails, s.
     ``distractors`` (bool, default True): schedule the distractors.
-    ``reverse_deg`` ((low, high) deg, default (15, 15)): this car's R detent, drawn uniformly
+    ``reverse_deg`` ((low, high) deg, default (7, 23)): this car's R detent, drawn uniformly
     per episode within 7..23 deg (:data:`acoustic_sim.world.scenes.REVERSE_DEG_RANGE`); the
     two detent bumps around R move with it. (15, 15) is the paper's car.
-    ``alarm_delay_s`` ((low, high) s, default (0, 0)): the alarm's relay latency after R
+    ``alarm_delay_s`` ((low, high) s, default (0.1, 1.5)): the alarm's relay latency after R
     engages, drawn uniformly per episode within 0..5 s; (0, 0) is the paper's (at once).
-    Both are hidden: absent from the observation, in ``info["hidden"]``.
-    :data:`HIDDEN_VARIATION` is the setting in which the lever angle and a clock no longer
-    tell when and where the alarm comes.
+    Both are hidden: absent from the observation, in ``info["hidden"]``. The defaults
+    (:data:`HIDDEN_VARIATION`) are the setting in which the lever angle and a clock no longer
+    tell when and where the alarm comes; ``ReverseAlarmEnv(**PAPER_CAR)`` is the paper's car.
     {common_arguments}
     """
 
@@ -90,8 +102,9 @@ class ReverseAlarmEnv(CabinLeverTask):
     radio_start_s = (0.0, 2.5)
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, success_window_s: float = 1.0, release_timeout_s: float = 5.0,
-                 distractors: bool = True, reverse_deg: tuple = (15.0, 15.0), alarm_delay_s: tuple = (0.0, 0.0),
+                 max_episode_s: float | None = None, success_window_s: float = SUCCESS_WINDOW_S,
+                 release_timeout_s: float = 5.0, distractors: bool = True,
+                 reverse_deg: tuple = HIDDEN_VARIATION["reverse_deg"], alarm_delay_s: tuple = HIDDEN_VARIATION["alarm_delay_s"],
                  audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
                  image_size: tuple = (120, 160), torch_threads: int | None = 1) -> None:
         self.reverse_deg = _range("reverse_deg", reverse_deg, scenes.REVERSE_DEG_RANGE, "deg")
@@ -164,4 +177,4 @@ class ReverseAlarmEnv(CabinLeverTask):
         return super()._judge_running()
 
 
-__all__ = ["HIDDEN_VARIATION", "ReverseAlarmEnv"]
+__all__ = ["HIDDEN_VARIATION", "PAPER_CAR", "ReverseAlarmEnv", "SUCCESS_WINDOW_S"]

@@ -11,8 +11,7 @@ from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.events import EventsConfig, SoundEvents
 from acoustic_sim.world.view import GearshiftGeometry
 from apps.runner import run_episode
-from policies import make_policy
-from policies.deaf import DeafReverseAlarm
+from policies.deaf import DeafLeverPolicy
 from tasks.reverse_alarm import HIDDEN_VARIATION, ReverseAlarmEnv
 
 DEG = np.pi / 180.0
@@ -103,15 +102,23 @@ def test_hidden_parameters_are_drawn_per_episode_and_kept_out_of_the_observation
         env.close()
 
 
+class FixedAngle(DeafLeverPolicy):
+    """The paper car's best deaf policy: the gearshift to 12 deg at 16 deg/s, let go at once."""
+
+    side = "left"
+    rate_deg_s = 16.0
+    target_deg = 12.0
+
+
 def test_a_fixed_angle_misses_a_car_with_another_reverse():
-    env = ReverseAlarmEnv(profile="fast", reverse_deg=(20.0, 20.0), alarm_delay_s=(1.0, 1.0))
+    env = ReverseAlarmEnv(profile="fast", reverse_deg=(20.0, 20.0), alarm_delay_s=(1.0, 1.0), success_window_s=1.0)
     try:
-        deaf = run_episode(env, make_policy("deaf", env), 5)  # 12 deg: the paper car's R, not this one's
+        deaf = run_episode(env, FixedAngle(env), 5)  # 12 deg: the paper car's R, not this one's
         assert deaf["outcome"] == "early" and deaf["target_onset_s"] is None
         # This car's R, less the taught motion's lead (the hand's pose for angle a moves the
         # lever to about a + 3 deg: the paper car's best deaf angle, 12, stands for its R at 15).
-        lead = 15.0 - DeafReverseAlarm.target_deg
-        held = run_episode(env, make_policy("deaf", env, target_deg=20.0 - lead, rate_deg_s=8.0, wait_s=1.3), 5)
+        lead = 15.0 - FixedAngle.target_deg
+        held = run_episode(env, FixedAngle(env, target_deg=20.0 - lead, rate_deg_s=8.0, wait_s=1.3), 5)
         assert held["outcome"] == "success"
         change = next(e["time_s"] for e in held["events"] if e["kind"] == "gear_change")
         assert held["target_onset_s"] - change == pytest.approx(1.0, abs=1.5 / SAMPLE_RATE)

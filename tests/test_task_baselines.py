@@ -8,6 +8,7 @@ from acoustic_sim.errors import ConfigError
 from apps import deaf_search, runner
 from policies import POLICIES, make_policy, policy_class
 from policies.deaf import POLICY_CLASSES as DEAF, SEARCH_PARAMETERS
+from tasks.reverse_alarm import ReverseAlarmEnv
 
 PERCEPT_KEYS = ("class_prob", "class_conf", "class_dir", "audio", "spectra")
 
@@ -51,8 +52,16 @@ def test_deaf_never_reads_the_percept(envs, task):
     policy = make_policy("deaf", env)
     a = actions(env, policy, 100, 200, wrap=NoPercept)
     assert len(a) > 10 and np.all(np.isfinite(a))
-    # Its actions do not depend on what is heard: the same with another episode's sounds.
-    b = actions(env, make_policy("deaf", env), 101, len(a), wrap=NoPercept)
+    # Its actions do not depend on what is heard: the same with another episode's sounds
+    # (ReverseAlarm: the same car without distractors; the hand feels the car's detents).
+    if task == "reverse-alarm":
+        quiet = runner.make_env(task, profile="fast", distractors=False)
+        try:
+            b = actions(quiet, make_policy("deaf", quiet), 100, len(a), wrap=NoPercept)
+        finally:
+            quiet.close()
+    else:
+        b = actions(env, make_policy("deaf", env), 101, len(a), wrap=NoPercept)
     if task != "call-response":  # the room's sweep steers by odometry, which the episode moves
         n = min(len(a), len(b))
         np.testing.assert_array_equal(a[:n], b[:n])
@@ -69,14 +78,31 @@ def test_deaf_parameters_are_constructor_arguments(envs, task):
 
 
 def test_deaf_lever_lets_go_when_its_clock_says(envs):
-    env = envs["reverse-alarm"]
+    env = envs["parking-brake"]
     policy = make_policy("deaf", env, target_deg=16.0, rate_deg_s=8.0, wait_s=0.3)
     a = actions(env, policy, 100, 400)
-    grasp = a[:, env.layout.index("grasp_left")]
+    grasp = a[:, env.layout.index("grasp_right")]
     first_open = int(np.argmax(grasp < 0))
     assert grasp[first_open] < 0 and np.all(grasp[:first_open] > 0)
     # 0.2 s delay + 16 / 8 s travel + 0.3 s wait = 2.5 s = step 156.25 -> the 157th action.
     assert first_open == int(np.ceil(2.5 / 0.016 - 1e-9))
+
+
+def test_deaf_gearshift_lets_go_a_wait_after_the_felt_detent():
+    # A car with R at 18 deg and a 0.6 s relay: the hand feels R's valley a little after R
+    # engages (0.44 s at 8 deg/s), waits, lets go: too soon, in the window, too late.
+    env = ReverseAlarmEnv(profile="fast", reverse_deg=(18.0, 18.0), alarm_delay_s=(0.6, 0.6), distractors=False)
+    try:
+        for wait, outcome in ((0.0, "early"), (0.4, "success"), (1.0, "late")):
+            policy = make_policy("deaf", env, rate_deg_s=8.0, wait_s=wait)
+            record = runner.run_episode(env, policy, 100)
+            assert record["outcome"] == outcome, (wait, record["outcome"])
+            assert policy.felt_s is not None and policy.feel.felt == 1
+            change = next(e["time_s"] for e in record["events"] if e["kind"] == "gear_change")
+            lag = record["release_s"] - wait - change  # from R engaging to the feel
+            assert 0.2 < lag < 0.6, lag
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("task", runner.TASK_NAMES)
@@ -130,11 +156,14 @@ def test_deaf_search_refuses_held_out_seeds():
 
 
 def test_deaf_search_picks_the_most_successful_point(monkeypatch):
-    # Two lever angles: 12 deg stops in R (the alarm sounds), 40 deg pushes through to D.
-    monkeypatch.setitem(deaf_search.GRIDS, "reverse-alarm",
-                        {"target_deg": (40.0, 12.0), "rate_deg_s": (8.0,), "wait_s": (0.0,)})
+    # One car (R at 18 deg, a 0.6 s relay) and two waits after the felt detent (which comes
+    # 0.44 s after R engages): none lets go before the alarm, 0.4 s within its window.
+    make_env = runner.make_env
+    monkeypatch.setattr(runner, "make_env", lambda task, **kw: make_env(task, reverse_deg=(18.0, 18.0),
+                                                                         alarm_delay_s=(0.6, 0.6), **kw))
+    monkeypatch.setitem(deaf_search.GRIDS, "reverse-alarm", {"rate_deg_s": (8.0,), "wait_s": (0.0, 0.4)})
     result = deaf_search.search("reverse-alarm", episodes=2, seed=100, progress=False)
-    assert [p["params"]["target_deg"] for p in result["points"]] == [40.0, 12.0]
-    assert result["points"][0]["success_rate"] == 0.0  # past R: the lever is in N or D
-    assert result["best"]["params"]["target_deg"] == 12.0 and result["best"]["success_rate"] == 1.0
+    assert [p["params"]["wait_s"] for p in result["points"]] == [0.0, 0.4]
+    assert result["points"][0]["success_rate"] == 0.0 and result["points"][0]["outcomes"] == {"early": 2}
+    assert result["best"]["params"]["wait_s"] == 0.4 and result["best"]["success_rate"] == 1.0
     assert "deaf search, reverse-alarm" in deaf_search.ranking(result)

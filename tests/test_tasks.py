@@ -21,6 +21,7 @@ from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scenes
 from policies import make_policy
 from tasks.actions import action_layout
+from tasks.base import CONTROL_DT
 from tasks.call_response import CallResponseEnv
 from tasks.levers import lever_arm_angles
 from tasks.parking_brake import ParkingBrakeEnv
@@ -186,6 +187,44 @@ def test_vector_envs(vector):
         assert reward.shape == (2,) and obs["joint_pos"].shape == (2, 14)
     finally:
         envs.close()
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_make_vec(mode):
+    envs = gym.make_vec("acoustic_sim/ReverseAlarm-v0", num_envs=2, vectorization_mode=mode, profile="fast")
+    try:
+        obs, _ = envs.reset(seed=5)
+        assert obs["class_prob"].shape == (2, 6) and obs["class_dir"].shape == (2, 6, 3)
+        envs.action_space.seed(5)
+        obs, reward, terminated, truncated, _ = envs.step(envs.action_space.sample())
+        assert reward.shape == (2,) and terminated.shape == (2,) and obs["joint_pos"].shape == (2, 14)
+    finally:
+        envs.close()
+
+
+def test_import_acoustic_sim_registers_the_ids_with_their_time_limits():
+    import json
+    import subprocess
+
+    code = ("import json, sys, acoustic_sim, gymnasium; print(json.dumps([[gymnasium.spec(i).max_episode_steps "
+            f"for i in {IDS!r}], 'tasks' in sys.modules, 'mujoco' in sys.modules]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    steps, tasks_loaded, mujoco_loaded = json.loads(out.stdout.strip().splitlines()[-1])
+    # The TimeLimit is the env's own default limit, in control steps; nothing heavy is imported.
+    assert steps == [round(cls.default_max_episode_s / CONTROL_DT) for cls in CLASSES]
+    assert not tasks_loaded and not mujoco_loaded
+    env = gym.make(IDS[1], profile="fast")
+    try:
+        assert isinstance(env, gym.wrappers.TimeLimit) or any(
+            isinstance(w, gym.wrappers.TimeLimit) for w in _wrappers(env))
+    finally:
+        env.close()
+
+
+def _wrappers(env):
+    while isinstance(env, gym.Wrapper):
+        yield env
+        env = env.env
 
 
 def test_oracle_reverse_alarm_and_ground_truth():
