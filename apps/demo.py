@@ -1,7 +1,8 @@
 """What ``make demo`` runs: one ReverseAlarm episode with the scripted policy, told in words.
 
 The robot sits in the car cabin with its left hand on the gearshift
-(``acoustic_sim/ReverseAlarm-v0``, :mod:`tasks.reverse_alarm`). The scripted policy
+(``acoustic_sim/ReverseAlarm-v0``, :mod:`tasks.reverse_alarm`), in the paper's car
+(``PAPER_CAR``: R at 15 deg, the alarm as R engages). The scripted policy
 (:mod:`policies.scripted`) pushes the lever toward R; entering R starts the reverse alarm in
 front of the head; the policy lets go once the alarm is heard *from the front*, while
 distractors (another vehicle's beeper behind or beside, a horn, the radio) try to fool it.
@@ -234,8 +235,6 @@ def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: 
     timeline: list[tuple[float, int, str]] = []  # (time, order at equal times, text)
 
     for te, e in trace.events:
-        if e["kind"] == "gear_change" and e.get("detail") == "R":
-            timeline.append((te, 0, "the lever enters R (the hand feels its detent; the alarm's relay is hidden)"))
         if e["kind"] == "distractor":
             detail = f" ({e['detail']})" if e["detail"] else ""
             timeline.append((te, 1, f"distractor: {e['label'].replace('_', ' ')}{detail}"))
@@ -257,7 +256,7 @@ def narrate(trace: Trace, record: dict, *, threshold: float, lateral_range_deg: 
     else:
         true_alarm = next((x["alarm"] for x in trace.true_az if "alarm" in x), None)
         where_true = f" (truly {true_alarm:+.0f} deg, {side_words(true_alarm)})" if true_alarm is not None else ""
-        timeline.append((onset, 0, f"the car's reverse alarm starts{where_true}"))
+        timeline.append((onset, 0, f"the lever enters R and the car's reverse alarm starts{where_true}"))
         after = np.flatnonzero(heard & (t >= onset))
         if after.size:
             j = int(after[0])
@@ -413,8 +412,6 @@ def figure(trace: Trace, moments: dict, path: Path, *, threshold: float, lateral
         axes[0].text(x, N_MELS - 2 - 22 * row, f"{label} " if right else f" {label}", color=color, va="top",
                      ha="right" if right else "left", fontsize=8, bbox={"facecolor": "white", "alpha": 0.8, "lw": 0, "pad": 1})
     for te, e in trace.events:
-        if e["kind"] == "gear_change" and e.get("detail") == "R":
-            timeline.append((te, 0, "the lever enters R (the hand feels its detent; the alarm's relay is hidden)"))
         if e["kind"] == "distractor":
             for ax in axes[2:]:
                 ax.axvline(te, color="0.4", lw=0.8, ls=":")
@@ -484,7 +481,9 @@ def run_demo(*, out, seed: int = 0, profile: str = "fast", progress: bool = True
     recorder = EpisodeRecorder(out / "demo.rrd", first_seed=int(seed), name=f"demo: reverse alarm, seed {int(seed)}")
     trace = Trace()
     try:
-        env = make_env(TASK, profile=profile)
+        from tasks.reverse_alarm import PAPER_CAR
+
+        env = make_env(TASK, profile=profile, **PAPER_CAR)  # the paper's car: R at 15 deg, the alarm at once
         try:
             from policies import make_policy
 
