@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import sofar
 
+from acoustic_sim.acoustics import hrtf as hrtf_module
 from acoustic_sim.acoustics import sofa_io
 from acoustic_sim.acoustics.hrtf import HRTF, KEMAR_PATH, sofa_left_receiver
 from acoustic_sim.errors import HRTFError
@@ -203,19 +204,37 @@ def test_ari_version_rule():
     assert not sofa_io.ari_mirrored_receivers(Meta)
 
 
-# Idents (sha256 of sample rate, directions and HRIRs) of the bundled sets as the loader
-# produced them before the ear check: the check must not change a bit of them.
-BUNDLED_IDENTS = {("kemar", 44100): "ead8cbc807f2624b", ("kemar", 48000): "f31f859d70426826",
-                  ("musashi", 44100): "d7356fa174f1b402", ("musashi", 16000): "60875e59cd0d6e45"}
+# The bundled file's ReceiverPosition is right (receiver 0 is the left ear), so the ear check
+# must not change a bit of what the loader makes of it. The reference is the same load with
+# the check bypassed (the loader as it was before the check: follow ReceiverPosition), not a
+# stored hash: resample_poly's last bits differ between scipy releases, and a hash taken on
+# one machine failed on every fresh one. The native-rate set, which is not resampled, keeps
+# its stored ident as an anchor for the loader itself.
+NATIVE_KEMAR_IDENT = "ead8cbc807f2624b"
 
 
-@pytest.mark.parametrize(("name", "rate"), list(BUNDLED_IDENTS))
-def test_bundled_sets_load_exactly_as_before(name, rate):
+def _load_fresh(name, rate):
+    hrtf_module._musashi.cache_clear()
+    try:
+        return HRTF.load(name, sample_rate=rate)
+    finally:
+        hrtf_module._musashi.cache_clear()
+
+
+@pytest.mark.parametrize(("name", "rate"), [("kemar", 44100), ("kemar", 48000),
+                                            ("musashi", 44100), ("musashi", 16000)])
+def test_bundled_sets_load_exactly_as_before(name, rate, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        h = HRTF.load(name, sample_rate=rate)
-    assert h.ident == BUNDLED_IDENTS[name, rate]
+        h = _load_fresh(name, rate)
     assert left_ear_is_left(h)
+    with monkeypatch.context() as m:
+        m.setattr(sofa_io, "left_receiver", lambda *args, **kwargs: 0)
+        unchecked = _load_fresh(name, rate)
+    assert h.ident == unchecked.ident
+    np.testing.assert_array_equal(h.hrir, unchecked.hrir)
+    if (name, rate) == ("kemar", 44100):
+        assert h.ident == NATIVE_KEMAR_IDENT
 
 
 def test_bundled_file_needs_no_correction():
