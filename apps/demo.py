@@ -115,7 +115,7 @@ class Trace:
             self.start_s = float(env.start_s)
         self.t.append(float(info["time_s"]) - self.start_s)
         self.prob.append(np.array(obs["class_prob"], dtype=np.float64))
-        self.direction.append(np.array(obs["class_dir"], dtype=np.float64))
+        self.direction.append(np.array(obs["class_dir"], dtype=np.float64).reshape(-1, 3))
         neck = np.array(obs["joint_pos"][:2], dtype=np.float64)
         self.neck.append(neck)
         self.confidence.append(np.array(obs["class_conf"], dtype=np.float64))

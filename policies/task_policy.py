@@ -70,8 +70,14 @@ def heard(obs, label: str, threshold: float, min_conf: float) -> tuple[bool, np.
     """Whether ``label`` is heard in this frame, and its direction when it has a confident estimate."""
     i = CLASSES.index(label)
     on = float(obs["class_prob"][i]) >= threshold
-    has = float(obs["class_conf"][i]) > min_conf and float(np.linalg.norm(obs["class_dir"][i])) > 0.5
-    return on, (np.asarray(obs["class_dir"][i], float) if on and has else None)
+    d = class_direction(obs, i)
+    has = float(obs["class_conf"][i]) > min_conf and float(np.linalg.norm(d)) > 0.5
+    return on, (d if on and has else None)
+
+
+def class_direction(obs, i: int) -> np.ndarray:
+    """Class ``i``'s estimated direction (head frame, (3,)) from the flat ``class_dir``."""
+    return np.asarray(obs["class_dir"][3 * i : 3 * i + 3], float)
 
 
 def head_pose(obs) -> tuple[float, float, float]:
@@ -83,4 +89,4 @@ def head_pose(obs) -> tuple[float, float, float]:
     return float(obs["joint_pos"][0]), float(obs["joint_pos"][1]), heading
 
 
-__all__ = ["TaskPolicy", "Votes", "head_pose", "heard"]
+__all__ = ["TaskPolicy", "Votes", "class_direction", "head_pose", "heard"]

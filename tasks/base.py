@@ -63,6 +63,7 @@ from tasks import spec
 from tasks.actions import ROBOT_JOINTS, ActionChannel, ActionLayout, action_layout
 from tasks.auditory import PROFILES, TorchThreads, load_hrtf, make_pipeline
 from tasks.levers import LEVERS, hold_lever, lever_arm_angles, lever_motion, settle
+from tasks.skills import ACTION_MODES, Skill
 from tasks.task_sounds import Soundscape, TaskSound, outside_placement
 
 CLASSES: tuple[str, ...] = tuple(SOUND_CLASSES)
@@ -76,6 +77,9 @@ BLOCK = math.ceil(SAMPLE_RATE / FRAME_RATE)
 
 N_BINS = 1025
 """Spectral bins per ear of the ``spectra`` observation."""
+
+REWARD_MODES = ("sparse", "shaped")
+"""The tasks' ``reward_mode`` values."""
 
 
 # -- the base environment ----------------------------------------------------------------------------------
@@ -102,6 +106,12 @@ class HearingTaskEnv(gym.Env):
         The ears (``"kemar"``, ``"spherical"`` or a SOFA path).
     max_episode_s : float or None
         Truncate after this much simulated time (s); default the task's.
+    action_mode : str
+        ``"joints"`` (the servo targets and the scene's extra channels) or ``"skill"`` (the
+        task family's small space, :mod:`tasks.skills`: the zero action is harmless).
+    reward_mode : str
+        ``"sparse"`` (the outcome only) or ``"shaped"`` (the sum of the ``reward_*`` terms
+        that ``info`` reports in both modes; :meth:`_reward_terms`).
     audio_obs, spectra_obs, image_obs : bool
         Add the raw audio block, the ear spectra, the right eye camera image.
     image_size : tuple of int
@@ -141,18 +151,27 @@ class HearingTaskEnv(gym.Env):
     """The task's own observation table rows (key, shape, meaning), after proprioception."""
     spec_rewards: ClassVar[str] = ""
     """The docstring's Rewards section: what :meth:`_evaluate` gives."""
+    spec_shaped_rewards: ClassVar[str] = ""
+    """The shaped reward's terms (:meth:`_reward_terms`), for the Rewards section."""
+    skill_rows: ClassVar[tuple[tuple[str, str, str, str], ...]] = ()
+    """The ``skill`` action mode's table rows (idx, component, range, meaning): the skill's."""
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
         cls.__doc__ = spec.expand(cls.__doc__, spec.parts(cls), owner=cls.__name__)
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, audio_obs: bool = False, spectra_obs: bool = False,
-                 image_obs: bool = False, image_size: tuple[int, int] = (120, 160), torch_threads: int | None = 1) -> None:
+                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse",
+                 audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
+                 image_size: tuple[int, int] = (120, 160), torch_threads: int | None = 1) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         if profile not in PROFILES:
             raise ConfigError(f"profile must be one of {PROFILES}, got {profile!r}")
+        if action_mode not in ACTION_MODES:
+            raise ConfigError(f"action_mode must be one of {ACTION_MODES}, got {action_mode!r}")
+        if reward_mode not in REWARD_MODES:
+            raise ConfigError(f"reward_mode must be one of {REWARD_MODES}, got {reward_mode!r}")
         max_s = self.default_max_episode_s if max_episode_s is None else max_episode_s
         if not (isinstance(max_s, (int, float)) and np.isfinite(max_s) and max_s > 0):
             raise ConfigError(f"max_episode_s must be a positive number of seconds, got {max_episode_s!r}")
@@ -170,15 +189,18 @@ class HearingTaskEnv(gym.Env):
         self.image_size = (h, w)
         self._threads = TorchThreads(torch_threads)
         self.layout = action_layout(self.scene_name)
+        self.action_mode, self.reward_mode = action_mode, reward_mode
+        self.skill = self._make_skill() if action_mode == "skill" else None
         self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows, self.fusion)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32)
+        self.action_space = (self.skill.space if self.skill is not None
+                             else spaces.Box(-1.0, 1.0, shape=(len(self.layout),), dtype=np.float32))
         obs = {
             "joint_pos": spaces.Box(-np.pi, np.pi, shape=(len(ROBOT_JOINTS),), dtype=np.float32),
             "joint_vel": spaces.Box(-50.0, 50.0, shape=(len(ROBOT_JOINTS),), dtype=np.float32),
             "class_prob": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
-            "class_dir": spaces.Box(-1.0, 1.0, shape=(len(CLASSES), 3), dtype=np.float32),
+            "class_dir": spaces.Box(-1.0, 1.0, shape=(3 * len(CLASSES),), dtype=np.float32),
             "class_conf": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
             "existence": spaces.Box(0.0, float(len(self.pipeline.ssdenet.bins)), shape=(self._n_directions,), dtype=np.float32),
         }
@@ -243,6 +265,15 @@ class HearingTaskEnv(gym.Env):
         """Channels that are not actuators (the grasp commands)."""
         raise ConfigError(f"unhandled action channel {channel.name!r}")
 
+    def _make_skill(self) -> Skill:
+        """The ``skill`` action mode's mapping (:mod:`tasks.skills`)."""
+        raise ConfigError(f"{type(self).__name__} has no skill action mode")
+
+    def _reward_terms(self, outcome_reward: float) -> dict[str, float]:
+        """This step's reward terms (``info``'s ``reward_*``); the shaped reward is their sum,
+        the sparse one ``outcome_reward``. Tasks add shaping terms to ``reward_outcome``."""
+        return {"reward_outcome": float(outcome_reward)}
+
     # -- episode ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -285,6 +316,9 @@ class HearingTaskEnv(gym.Env):
         self.last_percept = warm.percept if warm is not None else None
         self.start_s = self.coupling.time_s
         self._schedule(task_rng)
+        if self.skill is not None:
+            self.skill.reset(self)
+        self._reward_terms_last: dict[str, float] = {}
         self._scene_renderer = None  # the model changed: renderers are rebuilt on demand
         self._eye_renderer = None
         return self._observation(), self._info([])
@@ -293,9 +327,12 @@ class HearingTaskEnv(gym.Env):
         if self.coupling is None:
             raise ConfigError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (len(self.layout),) or not np.all(np.isfinite(a)):
-            raise ConfigError(f"action must be {len(self.layout)} finite numbers in [-1, 1], got shape {a.shape}")
+        n = self.action_space.shape[0]
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise ConfigError(f"action must be {n} finite numbers in [-1, 1] ({self.action_mode} mode), got shape {a.shape}")
         a = np.clip(a, -1.0, 1.0)
+        if self.skill is not None:
+            a = self.skill.to_joints(a).astype(np.float64)
         for i, ch in enumerate(self.layout.channels):
             if ch.target.startswith("grasp:"):
                 self._apply_special(ch, float(a[i]))
@@ -313,6 +350,9 @@ class HearingTaskEnv(gym.Env):
         truncated = not terminated and self.steps >= self.max_episode_steps
         if truncated and self.outcome == "running":
             self.outcome = "timeout"
+        terms = self._reward_terms_last = self._reward_terms(reward)
+        if self.reward_mode == "shaped":
+            reward = float(sum(terms.values()))
         obs, info = self._observation(), self._info(new)
         if self.step_callback is not None:
             self.step_callback(self, obs, reward, terminated, truncated, info)
@@ -412,7 +452,7 @@ class HearingTaskEnv(gym.Env):
             "joint_pos": np.clip(pos, -np.pi, np.pi),
             "joint_vel": np.clip(vel, -50.0, 50.0),
             "class_prob": np.clip(probs, 0.0, 1.0),
-            "class_dir": np.clip(dirs, -1.0, 1.0),
+            "class_dir": np.clip(dirs, -1.0, 1.0).reshape(-1),
             "class_conf": np.clip(conf, 0.0, 1.0),
             "existence": existence,
         }
@@ -442,6 +482,7 @@ class HearingTaskEnv(gym.Env):
             "outcome": self.outcome,
             "hidden": dict(self.hidden),
         }
+        info.update(self._reward_terms_last)
         info.update(self._task_info())
         return info
 

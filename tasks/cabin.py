@@ -21,6 +21,13 @@ from acoustic_sim.world import names, scenes
 from tasks.actions import ActionChannel
 from tasks.base import HearingTaskEnv
 from tasks.levers import hold_lever
+from tasks.skills import LeverSkill
+
+PROGRESS_WEIGHT = 0.3
+"""Shaped reward: weight of the lever's progress potential (:meth:`CabinLeverTask._reward_terms`)."""
+
+TIMING_WEIGHT = 0.5
+"""Shaped reward: bonus of a success at once (none at the end of the window)."""
 from tasks.task_sounds import TaskSound
 
 
@@ -100,6 +107,13 @@ class CabinLeverTask(HearingTaskEnv):
                                    "of the handle; <= 0 opens it.")
     spec_observation_rows: ClassVar = (("grasp", "(2,)", "1 if the left / right hand holds its lever"),)
     spec_rewards: ClassVar = "+1 on success, -1 on failure (both at the episode's end), 0 otherwise."
+    spec_shaped_rewards: ClassVar = (
+        f"``reward_outcome`` (the sparse reward), ``reward_progress`` (the change of {PROGRESS_WEIGHT:g} x the "
+        "lever's progress toward the position the task asks for, 0 at rest, 1 there: a potential, so over an "
+        f"episode it sums to at most {PROGRESS_WEIGHT:g}) and ``reward_timing`` (on success, {TIMING_WEIGHT:g} x "
+        "(1 - reaction / success_window_s)). A success returns at least 1, a failure at most "
+        f"{PROGRESS_WEIGHT - 1:g}.")
+    skill_rows: ClassVar = LeverSkill.rows
 
     def __init__(self, *, success_window_s: float, release_timeout_s: float, distractors: bool, **kwargs) -> None:
         for what, v in (("success_window_s", success_window_s), ("release_timeout_s", release_timeout_s)):
@@ -124,6 +138,11 @@ class CabinLeverTask(HearingTaskEnv):
         (:meth:`_lever_state` at the release) if the lever is not where it should be, else None."""
         raise NotImplementedError
 
+    def _progress(self) -> float:
+        """The lever's progress toward the position the task asks for: 0 at rest, 1 there
+        (ground truth, for the shaped reward only)."""
+        raise NotImplementedError
+
     def _draw_distractors(self, rng: np.random.Generator) -> dict:
         """Draw every choice of the task's own distractors (whether or not they play)."""
         raise NotImplementedError
@@ -144,6 +163,7 @@ class CabinLeverTask(HearingTaskEnv):
         self.released_state: dict | None = None
         self.false_release = False
         self.reaction_s: float | None = None
+        self._potential = 0.0
 
     def _schedule(self, rng: np.random.Generator) -> None:
         # Every distractor's choices are drawn whether or not it plays (and with distractors
@@ -174,6 +194,17 @@ class CabinLeverTask(HearingTaskEnv):
             if side == self.side and self.release_s is None:
                 self.release_s = self.time_s  # the moment of the command: the start of this step
                 self.released_state = self._lever_state()
+
+    def _make_skill(self) -> LeverSkill:
+        return LeverSkill(self.layout, self.side)
+
+    def _reward_terms(self, outcome_reward: float) -> dict[str, float]:
+        potential = PROGRESS_WEIGHT * float(np.clip(self._progress(), 0.0, 1.0))
+        progress, self._potential = potential - self._potential, potential
+        timing = 0.0
+        if self.outcome == "success" and self.reaction_s is not None:
+            timing = TIMING_WEIGHT * max(0.0, 1.0 - self.reaction_s / self.success_window_s)
+        return {"reward_outcome": float(outcome_reward), "reward_progress": float(progress), "reward_timing": float(timing)}
 
     def _task_spaces(self) -> dict:
         return {"grasp": spaces.MultiBinary(2)}

@@ -12,9 +12,16 @@ from gymnasium import spaces
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scenes
 from tasks.base import HearingTaskEnv
+from tasks.skills import TurnSkill
 
 ROOM_SIZE = (6.0, 5.0)
 """Floor size (m) of the ``room`` scene (its air volume's x and y)."""
+
+FACING_WEIGHT = 0.3
+"""Shaped reward: weight of the facing potential (:meth:`CallResponseEnv._reward_terms`)."""
+
+TIME_WEIGHT = 0.3
+"""Shaped reward: what a whole episode's time costs."""
 
 OUT_OF_VIEW_DEG = 50.0
 """The person starts at least this far (deg of bearing) from the robot's line of sight."""
@@ -89,13 +96,20 @@ class CallResponseEnv(HearingTaskEnv):
                                    "opposite speeds turn on the spot (right wheel forward turns left, 1 rad/s each way "
                                    "= 57 deg/s).")
     spec_rewards: ClassVar = "+1 when the person comes into view, 0 otherwise."
+    spec_shaped_rewards: ClassVar = (
+        f"``reward_outcome`` (the sparse reward), ``reward_facing`` (the change of {FACING_WEIGHT:g} x "
+        "(1 - the angle between the head's forward and the person / 180 deg): a potential, summing over an "
+        f"episode to within +-{FACING_WEIGHT:g}) and ``reward_time`` (-{TIME_WEIGHT:g} / the episode's step limit "
+        f"each step). A success returns at least {1 - FACING_WEIGHT - TIME_WEIGHT:g}, a failure at most "
+        f"{FACING_WEIGHT:g}.")
+    skill_rows: ClassVar = TurnSkill.rows
     spec_observation_rows: ClassVar = (
         ("base", "(3,)", ("the wheelchair's odometry: heading since the start (rad, +-pi, + left), forward speed "
                           "(m/s), yaw rate (rad/s)")),
     )
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, call_interval_s: tuple = (5.0, 7.0), distractors: bool = True,
+                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse", call_interval_s: tuple = (5.0, 7.0), distractors: bool = True,
                  audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
                  image_size: tuple = (120, 160), torch_threads: int | None = 1) -> None:
         lo, hi = (float(v) for v in call_interval_s)
@@ -103,7 +117,7 @@ class CallResponseEnv(HearingTaskEnv):
             raise ConfigError(f"call_interval_s must be (low, high) seconds with 2 <= low <= high, got {call_interval_s!r}")
         self.call_interval_s = (lo, hi)
         self.distractors = bool(distractors)
-        super().__init__(render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s,
+        super().__init__(render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s, action_mode=action_mode, reward_mode=reward_mode,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
         h, w = self.image_size
@@ -168,6 +182,7 @@ class CallResponseEnv(HearingTaskEnv):
                 self.schedule_sound(f"loudspeaker{i}", label, ev.draw("loudspeaker", label), speaker, t,
                                     ev.config.loudspeaker_db, frame="world", detail="loudspeaker")
         self.initial_heading = _yaw(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
+        self._potential = FACING_WEIGHT * self._facing()
         self._update_base()
         self._in_view, self._image_uv = self.person_in_view()
 
@@ -225,6 +240,20 @@ class CallResponseEnv(HearingTaskEnv):
 
     def _task_obs(self) -> dict:
         return {"base": np.clip(self._base, [-np.pi, -5.0, -10.0], [np.pi, 5.0, 10.0]).astype(np.float32)}
+
+    # -- actions and rewards ---------------------------------------------------------------------
+    def _make_skill(self) -> TurnSkill:
+        return TurnSkill(self.layout, self.WHEEL_RADIUS_M, self.TRACK_M)
+
+    def _facing(self) -> float:
+        """1 looking straight at the person, 0 with the person straight behind (ground truth)."""
+        return 1.0 - math.acos(float(np.clip(self.person_direction()[0], -1.0, 1.0))) / math.pi
+
+    def _reward_terms(self, outcome_reward: float) -> dict[str, float]:
+        potential = FACING_WEIGHT * self._facing()
+        facing, self._potential = potential - self._potential, potential
+        return {"reward_outcome": float(outcome_reward), "reward_facing": float(facing),
+                "reward_time": -TIME_WEIGHT / self.max_episode_steps}
 
     # -- evaluation ---------------------------------------------------------------------------------
     def _evaluate(self):

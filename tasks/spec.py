@@ -52,8 +52,8 @@ PROPRIOCEPTION_ROWS: tuple[tuple[str, str, str], ...] = (
 
 PERCEPT_ROWS: tuple[tuple[str, str, str], ...] = (
     ("class_prob", "(6,)", f"the percept's fused class probabilities ({', '.join(SOUND_CLASSES)})"),
-    ("class_dir", "(6, 3)", ("per class, the estimated direction (unit vector, head frame: x forward, y left, "
-                             "z up); zeros when the class has no estimate")),
+    ("class_dir", "(18,)", ("per class, the estimated direction (unit vector, head frame: x forward, y left, "
+                            "z up), class k in entries 3k..3k+2; zeros when the class has no estimate")),
     ("class_conf", "(6,)", "per class, the estimate's confidence 0..1 (0: no estimate)"),
     ("existence", "(D,)", ("SSDENet existence map of the most likely class that has an estimate, over the D "
                            "(327) grid directions; zeros if none")),
@@ -68,6 +68,8 @@ COMMON_ARGUMENTS = """\
 ``profile`` (str, default "paper"): auditory models, ``"paper"`` or ``"fast"``.
 ``hrtf`` (str, default "kemar"): the ears.
 ``max_episode_s`` (float | None, default None): truncation time in s (None: {max_episode_s:g} s).
+``action_mode`` (str, default "joints"): ``"joints"`` or ``"skill"`` (see Action Space).
+``reward_mode`` (str, default "sparse"): ``"sparse"`` or ``"shaped"`` (see Rewards).
 ``audio_obs`` (bool, default False): add ``audio``.
 ``spectra_obs`` (bool, default False): add ``spectra``.
 ``image_obs`` (bool, default False): add ``image``.
@@ -127,11 +129,24 @@ def parts(cls) -> dict[str, str]:
         notes += " " + cls.spec_action_notes
     observations = rst_table(("key", "shape", "meaning"), (*PROPRIOCEPTION_ROWS, *cls.spec_observation_rows, *PERCEPT_ROWS),
                              wrap_last=MEANING_WIDTH)
+    action = (f"``action_mode=\"joints\"``: ``Box(-1, 1, ({n},), float32)``, normalized targets; -1 and +1 are the "
+              "ends of the range.")
+    action = f"{textwrap.fill(action, PROSE_WIDTH)}\n\n{actions}\n\n{textwrap.fill(notes, PROSE_WIDTH)}"
+    rewards = textwrap.fill("``reward_mode=\"sparse\"``: " + cls.spec_rewards, PROSE_WIDTH)
+    if cls.skill_rows:
+        skill = (f"``action_mode=\"skill\"``: ``Box(-1, 1, ({len(cls.skill_rows)},), float32)``; the zero action keeps "
+                 "everything as it is (nothing moves, nothing lets go), the rest of the robot holds its rest pose "
+                 "(:mod:`tasks.skills`).")
+        table = rst_table(("idx", "component", "range", "meaning"), cls.skill_rows, wrap_last=MEANING_WIDTH)
+        action += f"\n\n{textwrap.fill(skill, PROSE_WIDTH)}\n\n{table}"
+    if cls.spec_shaped_rewards:
+        shaped = ("``reward_mode=\"shaped\"``: the sum of the terms that ``info`` reports each step in both modes: "
+                  + cls.spec_shaped_rewards)
+        rewards += "\n\n" + textwrap.fill(shaped, PROSE_WIDTH)
     sections = (
-        ("Action Space", (f"``Box(-1, 1, ({n},), float32)``: normalized targets; -1 and +1 are the ends of the range."
-                          f"\n\n{actions}\n\n{textwrap.fill(notes, PROSE_WIDTH)}")),
+        ("Action Space", action),
         ("Observation Space", f"``Dict``:\n\n{observations}"),
-        ("Rewards", textwrap.fill(cls.spec_rewards, PROSE_WIDTH)),
+        ("Rewards", rewards),
     )
     return {
         "spaces_and_rewards": "\n\n".join(f"{title}\n{'-' * len(title)}\n{text}" for title, text in sections),

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -28,10 +30,13 @@ def rng() -> np.random.Generator:
 @pytest.fixture(scope="session", autouse=True)
 def model_cache(tmp_path_factory):
     """Trained models go to a fresh folder per test session (CI starts without a cache; a
-    developer's own cache is never read or overwritten by the tests)."""
+    developer's own cache is never read or overwritten by the tests). A developer rerunning
+    a few tests may set ACOUSTIC_SIM_TEST_CACHE to a folder kept between sessions (the
+    models are trained into it once); CI never sets it."""
     import os
 
-    path = tmp_path_factory.mktemp("model-cache")
+    kept = os.environ.get("ACOUSTIC_SIM_TEST_CACHE")
+    path = Path(kept) if kept else tmp_path_factory.mktemp("model-cache")
     old = os.environ.get("ACOUSTIC_SIM_CACHE")
     os.environ["ACOUSTIC_SIM_CACHE"] = str(path)
     yield path

@@ -301,7 +301,7 @@ def test_lever_waits_for_quiet_and_credits_only_its_own_clicks(envs):
             i = CLASSES.index(label)
             o["class_prob"][i] = p
             if d is not None:
-                o["class_dir"][i], o["class_conf"][i] = d, 1.0
+                o["class_dir"][3 * i : 3 * i + 3], o["class_conf"][i] = d, 1.0
         return o
 
     def moved(o):
