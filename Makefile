@@ -21,8 +21,9 @@ DEMO_ARGS ?=
 demo: $(STAMP)
 	$(BIN)/acoustic-sim demo --out runs $(DEMO_ARGS)
 
+# Two workers (CI and a laptop have at least two cores): the suite's episodes split between them.
 test: $(STAMP)
-	$(BIN)/pytest -q
+	$(BIN)/pytest -q -n 2
 
 bench: $(STAMP)
 	$(BIN)/acoustic-sim bench render --out bench/render.json

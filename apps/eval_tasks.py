@@ -21,8 +21,15 @@ from pathlib import Path
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.files import atomic_path, write_text
 
-POLICIES = ("scripted", "oracle", "blind")
-"""The policies compared, in the table's order."""
+POLICIES = ("scripted", "oracle", "blind", "deaf", "random")
+"""The policies compared by default, in the table's order: what the percept is worth is
+scripted minus deaf, what its directions are worth scripted minus blind."""
+
+DEAF_MAX = 0.35
+"""Target: the deaf policy's success rate in every task (hearing decides)."""
+
+ORACLE_MIN = 0.98
+"""Target: the oracle's success rate in every task (the task can be done)."""
 
 BEGIN, END = "<!-- tasks:begin -->", "<!-- tasks:end -->"
 
@@ -52,7 +59,7 @@ def held_out(first: int, last: int) -> bool:
 
 
 def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed: int = EVAL_SEED, quick: bool = False,
-              progress: bool = True) -> dict:
+              progress: bool = True, policies=None) -> dict:
     """Run every task with every policy; returns what ``tasks.json`` holds.
 
     Parameters
@@ -67,24 +74,33 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
         Seed of the first episode, >= 0 (default :data:`EVAL_SEED`: held out from every design choice).
     quick : bool
         Few episodes with the fast models (tests).
+    policies : sequence of str, optional
+        Policy names or ``module:Class`` (:func:`policies.policy_class`); default :data:`POLICIES`.
     """
+    from policies import policy_class
     from acoustic_sim.experiments.report import write_json
     from apps.runner import TASK_NAMES, run_episodes
 
     if quick:
         profile = "fast"
     episodes = (3 if quick else EPISODES) if episodes is None else episodes
+    policies = tuple(dict.fromkeys(POLICIES if policies is None else policies))
+    for task in TASK_NAMES:  # every policy known before the first episode runs
+        for policy in policies:
+            policy_class(policy, task)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for task in TASK_NAMES:
-        for policy in POLICIES:
-            result = run_episodes(task, policy, episodes, seed, out / task / policy, profile=profile, progress=progress)
+        for policy in policies:
+            folder = out / task / policy.replace(":", ".")
+            result = run_episodes(task, policy, episodes, seed, folder, profile=profile, progress=progress)
             s = result["summary"]
             rows.append({"task": task, "policy": policy, "episodes": len(result["records"]),
                          **{k: s[k] for k in ("success_rate", "success_rate_ci95", "false_release_rate",
                                               "false_release_rate_ci95", "median_reaction_s", "outcomes")}})
-    data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick), "rows": rows}
+    data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick),
+            "policies": list(policies), "rows": rows}
     data["targets"] = targets(data)
     write_json(out / "tasks.json", data)
     report(out)
@@ -119,18 +135,19 @@ def figure(out) -> Path:
     cell = {(r["task"], r["policy"]): r for r in data["rows"]}
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.2))
     x = np.arange(len(task_names))
-    width = 0.8 / len(POLICIES)
+    policies = data.get("policies", list(dict.fromkeys(r["policy"] for r in data["rows"])))
+    width = 0.8 / len(policies)
     panels = (("success_rate", "success rate", (0, 1.05)), ("false_release_rate", "false-release rate", (0, 1.05)),
               ("median_reaction_s", "median reaction (s)", None))
     for ax, (key, label, ylim) in zip(axes, panels):
-        for i, policy in enumerate(POLICIES):
+        for i, policy in enumerate(policies):
             vals = [cell[t, policy][key] for t in task_names]
             cis = [cell[t, policy].get(f"{key}_ci95") for t in task_names]
             err = None
             if any(c is not None for c in cis):  # the 95 % interval of a rate
                 err = np.array([[np.nan, np.nan] if c is None or v is None else [v - c[0], c[1] - v]
                                 for v, c in zip(vals, cis)]).T
-            bars = ax.bar(x + (i - (len(POLICIES) - 1) / 2) * width, [np.nan if v is None else v for v in vals],
+            bars = ax.bar(x + (i - (len(policies) - 1) / 2) * width, [np.nan if v is None else v for v in vals],
                           width=width, label=policy, yerr=err, error_kw={"elinewidth": 0.7, "capsize": 1.5})
             for b, v, c in zip(bars, vals, cis):
                 top = 0 if v is None else (v if c is None else c[1])  # above the interval's bar
@@ -189,6 +206,13 @@ def targets(data: dict) -> list[dict]:
     rows = {(r["task"], r["policy"]): r for r in data["rows"]}
     out = []
     for task in dict.fromkeys(r["task"] for r in data["rows"]):
+        d, o = rows.get((task, "deaf")), rows.get((task, "oracle"))
+        if d is not None:
+            out.append({"task": task, "target": f"deaf: success at most {DEAF_MAX}",
+                        "result": _rate(d["success_rate"], d.get("success_rate_ci95")), "met": d["success_rate"] <= DEAF_MAX})
+        if o is not None:
+            out.append({"task": task, "target": f"oracle: success at least {ORACLE_MIN}",
+                        "result": _rate(o["success_rate"], o.get("success_rate_ci95")), "met": o["success_rate"] >= ORACLE_MIN})
         s = rows.get((task, "scripted"))
         if s is None:
             continue

@@ -109,7 +109,8 @@ class CallResponseEnv(HearingTaskEnv):
     )
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse", call_interval_s: tuple = (5.0, 7.0), distractors: bool = True,
+                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse",
+                 call_interval_s: tuple = (5.0, 7.0), distractors: bool = True,
                  audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
                  image_size: tuple = (120, 160), torch_threads: int | None = 1) -> None:
         lo, hi = (float(v) for v in call_interval_s)
@@ -117,7 +118,8 @@ class CallResponseEnv(HearingTaskEnv):
             raise ConfigError(f"call_interval_s must be (low, high) seconds with 2 <= low <= high, got {call_interval_s!r}")
         self.call_interval_s = (lo, hi)
         self.distractors = bool(distractors)
-        super().__init__(render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s, action_mode=action_mode, reward_mode=reward_mode,
+        super().__init__(render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s,
+                         action_mode=action_mode, reward_mode=reward_mode,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
         h, w = self.image_size

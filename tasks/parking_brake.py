@@ -104,7 +104,8 @@ class ParkingBrakeEnv(CabinLeverTask):
     """Room-frame point (m) of the turn-signal relay: under the dashboard, left front."""
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse", required_teeth: int = 1, success_window_s: float = 0.5,
+                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse",
+                 required_teeth: int = 1, success_window_s: float = 0.5,
                  release_timeout_s: float = 5.0, distractors: bool = True, audio_obs: bool = False,
                  spectra_obs: bool = False, image_obs: bool = False, image_size: tuple = (120, 160),
                  torch_threads: int | None = 1) -> None:
@@ -113,7 +114,8 @@ class ParkingBrakeEnv(CabinLeverTask):
             raise ConfigError(f"required_teeth must be an integer 1..{n}, got {required_teeth!r}")
         self.required_teeth = int(required_teeth)
         super().__init__(success_window_s=success_window_s, release_timeout_s=release_timeout_s, distractors=distractors,
-                         render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s, action_mode=action_mode, reward_mode=reward_mode,
+                         render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s,
+                         action_mode=action_mode, reward_mode=reward_mode,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
 

@@ -102,7 +102,8 @@ class ReverseAlarmEnv(CabinLeverTask):
     radio_start_s = (0.0, 2.5)
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
-                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse", success_window_s: float = SUCCESS_WINDOW_S,
+                 max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse",
+                 success_window_s: float = SUCCESS_WINDOW_S,
                  release_timeout_s: float = 5.0, distractors: bool = True,
                  reverse_deg: tuple = HIDDEN_VARIATION["reverse_deg"], alarm_delay_s: tuple = HIDDEN_VARIATION["alarm_delay_s"],
                  audio_obs: bool = False, spectra_obs: bool = False, image_obs: bool = False,
@@ -110,7 +111,8 @@ class ReverseAlarmEnv(CabinLeverTask):
         self.reverse_deg = _range("reverse_deg", reverse_deg, scenes.REVERSE_DEG_RANGE, "deg")
         self.alarm_delay_s = _range("alarm_delay_s", alarm_delay_s, (0.0, 5.0), "s")
         super().__init__(success_window_s=success_window_s, release_timeout_s=release_timeout_s, distractors=distractors,
-                         render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s, action_mode=action_mode, reward_mode=reward_mode,
+                         render_mode=render_mode, profile=profile, hrtf=hrtf, max_episode_s=max_episode_s,
+                         action_mode=action_mode, reward_mode=reward_mode,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
 

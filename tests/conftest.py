@@ -36,9 +36,41 @@ def model_cache(tmp_path_factory):
     import os
 
     kept = os.environ.get("ACOUSTIC_SIM_TEST_CACHE")
-    path = Path(kept) if kept else tmp_path_factory.mktemp("model-cache")
+    worker = os.environ.get("PYTEST_XDIST_WORKER")  # `pytest -n N` (make test): one cache for the run
+    if kept:
+        path = Path(kept)
+    elif worker:
+        path = tmp_path_factory.getbasetemp().parent / "model-cache"
+        path.mkdir(exist_ok=True)
+    else:
+        path = tmp_path_factory.mktemp("model-cache")
     old = os.environ.get("ACOUSTIC_SIM_CACHE")
     os.environ["ACOUSTIC_SIM_CACHE"] = str(path)
+    if worker:
+        # The first worker trains the fast models every task test needs; the others wait and
+        # load them (two workers training the same models would double the suite's longest part).
+        from filelock import FileLock
+
+        from acoustic_sim.auditory.melcnn import MelCNN
+        from acoustic_sim.auditory.ssdenet import SSDENetBank
+        from acoustic_sim.directions import DirectionGrid
+        from tasks.auditory import load_hrtf
+
+        def bank():
+            ears = load_hrtf("kemar")
+            SSDENetBank.load_or_train(ears, DirectionGrid.paper(ears), "fast", progress=False)
+
+        def cnn():
+            MelCNN.load_or_train("fast", progress=False)
+
+        # Each model under its own lock, the workers taking them in opposite orders: the two
+        # train at once, and every worker finds both in the cache afterwards.
+        jobs = [("ssdenet", bank), ("melcnn", cnn)]
+        if worker.removeprefix("gw").isdigit() and int(worker.removeprefix("gw")) % 2:
+            jobs.reverse()
+        for name, train in jobs:
+            with FileLock(f"{path}.{name}.lock"):
+                train()
     yield path
     if old is None:
         os.environ.pop("ACOUSTIC_SIM_CACHE", None)

@@ -16,13 +16,16 @@ from acoustic_sim.errors import ConfigError
 
 
 @pytest.fixture(scope="module")
-def fast_cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("cache")
+def fast_cache(model_cache):
+    """The test session's model cache (tests/conftest.py), where the fast models are trained
+    once through the cache on first use; training them again here would double the suite's
+    longest part."""
+    return model_cache
 
 
 @pytest.fixture(scope="module")
 def fast_model(fast_cache):
-    """The ``fast`` profile, trained once through the cache (first use)."""
+    """The ``fast`` profile, from the session's cache (trained there on first use)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv(checkpoint.CACHE_ENV, str(fast_cache))
         return mc.MelCNN.load_or_train("fast", progress=False)

@@ -103,7 +103,11 @@ def test_readme_task_section_is_the_committed_run():
     first, last = data["seed"], data["seed"] + data["episodes"] - 1
     assert all(last < a or first > b for a, b in tasks.DESIGN_SEEDS)
     assert f"held out: the policies were tuned on seeds {tasks.design_seeds_text()}" in section
-    assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
+    # Every task with each of the run's policies (the committed run predates the deaf and random
+    # rows, and lists no "policies": its three are scripted, oracle and blind).
+    policies = data.get("policies", ["scripted", "oracle", "blind"])
+    assert {"scripted", "oracle", "blind"} <= set(policies)
+    assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in policies]
     for r in data["rows"]:
         assert (TASKS / r["task"] / r["policy"] / "episodes.json").is_file()
     assert (TASKS / "tasks.png").is_file() and "![tasks](results/tasks/tasks.png)" in section
@@ -115,15 +119,17 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
 
     data = tasks.run_tasks(out=tmp_path, quick=True, episodes=1, progress=False)
     assert data["profile"] == "fast" and data["episodes"] == 1 and data["seed"] == tasks.EVAL_SEED
-    assert data["targets"] == tasks.targets(data) and len(data["targets"]) == 9
+    # per cabin task: deaf, oracle, scripted success, reaction, no false release, blind; the room: three
+    assert data["targets"] == tasks.targets(data) and len(data["targets"]) == 15
     assert [(r["task"], r["policy"]) for r in data["rows"]] == [(t, p) for t in TASK_NAMES for p in tasks.POLICIES]
     for r in data["rows"]:
         assert r["episodes"] == 1 and r["success_rate"] in (0.0, 1.0) and sum(r["outcomes"].values()) == 1
         assert r["success_rate_ci95"][0] <= r["success_rate"] <= r["success_rate_ci95"][1]
         assert (tmp_path / r["task"] / r["policy"] / "episodes.json").is_file()
     table = tasks.table(tmp_path)
-    # The targets table (header and nine targets), then the results (header and one row per task and policy).
-    assert table.count("\n| ") == (1 + 9) + (1 + 9) and "| call-response | blind |" in table
+    # The targets table (header and 15 targets), then the results (header and one row per task and policy).
+    assert table.count("\n| ") == (1 + 15) + (1 + 15) and "| call-response | blind |" in table
+    assert "| reverse-alarm | deaf: success at most 0.35 |" in table
     assert "| parking-brake | blind: false releases" in table
     assert (tmp_path / "REPORT.md").read_text().endswith(table + "\n\n![tasks](tasks.png)\n")
     assert (tmp_path / "tasks.png").stat().st_size > 10_000
@@ -145,6 +151,20 @@ def test_eval_tasks_runs_every_task_with_every_policy(tmp_path):
                           "--episodes", "0"], capture_output=True, text=True)
     assert bad.returncode != 0 and "--episodes" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
 
+
+
+def test_eval_tasks_takes_a_policy_class_and_refuses_an_unknown_one_before_running(tmp_path):
+    from apps import eval_tasks as tasks
+    from apps.runner import TASK_NAMES
+
+    data = tasks.run_tasks(out=tmp_path / "ok", quick=True, episodes=1, progress=False,
+                           policies=["policies.random_policy:RandomHoldPolicy", "deaf"])
+    assert [(r["task"], r["policy"]) for r in data["rows"]] == [
+        (t, p) for t in TASK_NAMES for p in ("policies.random_policy:RandomHoldPolicy", "deaf")]
+    assert (tmp_path / "ok" / "call-response" / "policies.random_policy.RandomHoldPolicy" / "episodes.json").is_file()
+    with pytest.raises(ConfigError, match="unknown policy 'psychic'"):
+        tasks.run_tasks(out=tmp_path / "bad", quick=True, episodes=1, progress=False, policies=["scripted", "psychic"])
+    assert not (tmp_path / "bad").exists()
 
 def test_task_targets_follow_the_summaries():
     """The task targets table: success, reaction, no false release for scripted; blind's
