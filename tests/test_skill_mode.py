@@ -171,3 +171,15 @@ def test_bad_modes_are_refused():
     env.reset(seed=0)
     with pytest.raises(ConfigError, match=r"2 finite numbers .* \(skill mode\)"):
         env.step(np.zeros(16, np.float32))
+
+
+def test_readme_gymnasium_example_runs(capsys):
+    """The README's Gymnasium example, as printed there, runs an episode to its end."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    start = text.index("```python", text.index("## Gymnasium tasks")) + len("```python\n")
+    code = text[start : text.index("```", start)]
+    exec(compile(code, "README.md (Gymnasium tasks)", "exec"), {})
+    outcome = capsys.readouterr().out.split()[0]
+    assert outcome in {"success", "early", "late", "not_in_reverse", "past_reverse", "no_release", "timeout"}
