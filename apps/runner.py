@@ -312,6 +312,11 @@ def add_parsers(sub) -> None:
     r.add_argument("--paper-car", action="store_true",
                    help="reverse-alarm only: the paper's car (R at 15 deg, the alarm as R engages, a 1 s window) "
                    "instead of a car whose R and alarm latency are drawn per episode")
+    r.add_argument("--action-mode", choices=("joints", "skill"), default="joints",
+                   help="the env's action space: joints (default; what the built-in policies act in) or skill "
+                   "(the small learner's space of tasks/skills.py, for a module:Class policy written for it)")
+    r.add_argument("--reward-mode", choices=("sparse", "shaped"), default="sparse",
+                   help="the reward summed into each record's return: sparse (default) or shaped")
     r.add_argument("--rrd", type=Path, default=None, metavar="FILE",
                    help="also write a rerun recording (FILE ends in .rrd) of all the episodes, one after another "
                    "on the sim_time timeline, numbered on an episode timeline")
@@ -334,7 +339,11 @@ def cmd_run(args) -> int:
             raise ConfigError("--paper-car only applies to reverse-alarm")
         from tasks.reverse_alarm import PAPER_CAR
 
-        env_kwargs = PAPER_CAR
+        env_kwargs = dict(PAPER_CAR)
+    if args.action_mode == "skill" and ":" not in args.policy:
+        raise ConfigError(f"--action-mode skill needs a module:Class policy written for it; the built-in "
+                          f"{args.policy!r} acts in the joints mode")
+    env_kwargs = {**(env_kwargs or {}), "action_mode": args.action_mode, "reward_mode": args.reward_mode}
     result = run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile,
                           rrd=args.rrd, camera=not args.no_camera, env_kwargs=env_kwargs)
     print(f"wrote {args.out / 'episodes.json'}")

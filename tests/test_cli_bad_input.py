@@ -210,6 +210,7 @@ RUN = [
     ("seed-negative", "reverse-alarm --seed -1 --out {out}/r"),
     ("no-camera-without-rrd", "reverse-alarm --no-camera --out {out}/r"),
     ("paper-car-other-task", "parking-brake --paper-car --out {out}/r"),
+    ("skill-mode-built-in-policy", "reverse-alarm --action-mode skill --out {out}/r"),
     ("out-under-a-file", "reverse-alarm --out {bad}/afile/r --rrd {out}/r.rrd"),
     ("out-in-proc", f"reverse-alarm --out {PROC}/r"),
     ("rrd-not-rrd", "reverse-alarm --out {out}/r --rrd {out}/r.txt"),

@@ -183,3 +183,31 @@ def test_readme_gymnasium_example_runs(capsys):
     exec(compile(code, "README.md (Gymnasium tasks)", "exec"), {})
     outcome = capsys.readouterr().out.split()[0]
     assert outcome in {"success", "early", "late", "not_in_reverse", "past_reverse", "no_release", "timeout"}
+
+
+class SkillPusher:
+    """A skill-mode policy for ``run --policy test_skill_mode:SkillPusher``: push at 8 deg/s,
+    let go once the reverse alarm is heard (the README example's rule)."""
+
+    def __init__(self, env) -> None:
+        self.env = env
+
+    def reset(self, obs, info, seed=None) -> None:
+        pass
+
+    def act(self, obs, info) -> np.ndarray:
+        return np.array([0.4, 1.0 if obs["class_prob"][1] > 0.5 else -1.0], np.float32)
+
+
+def test_run_takes_the_modes_for_a_policy_written_for_them(tmp_path):
+    import json
+
+    from acoustic_sim.cli import main
+
+    assert main(["run", "reverse-alarm", "--policy", "test_skill_mode:SkillPusher", "--action-mode", "skill",
+                 "--reward-mode", "shaped", "--paper-car", "--episodes", "2", "--seed", "11", "--profile", "fast",
+                 "--out", str(tmp_path)]) == 0
+    records = json.loads((tmp_path / "episodes.json").read_text())["records"]
+    assert len(records) == 2
+    for r in records:  # the shaped return ranks every success above every failure
+        assert r["return"] >= 1.0 if r["success"] else r["return"] <= -0.7 + 1e-9, r
