@@ -274,6 +274,18 @@ class HearingTaskEnv(gym.Env):
         the sparse one ``outcome_reward``. Tasks add shaping terms to ``reward_outcome``."""
         return {"reward_outcome": float(outcome_reward)}
 
+    def _shaping_potential(self) -> float:
+        """The shaped reward's potential in the current state (ground truth; 0: none)."""
+        return 0.0
+
+    def _potential_change(self) -> float:
+        """The change of :meth:`_shaping_potential` since the last step (or the episode's
+        start): a potential-based term, which sums over an episode to its end value minus
+        its start value."""
+        potential = self._shaping_potential()
+        change, self._potential = potential - self._potential, potential
+        return change
+
     # -- episode ------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -319,6 +331,7 @@ class HearingTaskEnv(gym.Env):
         if self.skill is not None:
             self.skill.reset(self)
         self._reward_terms_last: dict[str, float] = {}
+        self._potential = self._shaping_potential()
         self._scene_renderer = None  # the model changed: renderers are rebuilt on demand
         self._eye_renderer = None
         return self._observation(), self._info([])

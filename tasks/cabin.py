@@ -22,13 +22,13 @@ from tasks.actions import ActionChannel
 from tasks.base import HearingTaskEnv
 from tasks.levers import hold_lever
 from tasks.skills import LeverSkill
+from tasks.task_sounds import TaskSound
 
 PROGRESS_WEIGHT = 0.3
 """Shaped reward: weight of the lever's progress potential (:meth:`CabinLeverTask._reward_terms`)."""
 
 TIMING_WEIGHT = 0.5
 """Shaped reward: bonus of a success at once (none at the end of the window)."""
-from tasks.task_sounds import TaskSound
 
 
 class CabinLeverTask(HearingTaskEnv):
@@ -163,7 +163,6 @@ class CabinLeverTask(HearingTaskEnv):
         self.released_state: dict | None = None
         self.false_release = False
         self.reaction_s: float | None = None
-        self._potential = 0.0
 
     def _schedule(self, rng: np.random.Generator) -> None:
         # Every distractor's choices are drawn whether or not it plays (and with distractors
@@ -198,9 +197,11 @@ class CabinLeverTask(HearingTaskEnv):
     def _make_skill(self) -> LeverSkill:
         return LeverSkill(self.layout, self.side)
 
+    def _shaping_potential(self) -> float:
+        return PROGRESS_WEIGHT * float(np.clip(self._progress(), 0.0, 1.0))
+
     def _reward_terms(self, outcome_reward: float) -> dict[str, float]:
-        potential = PROGRESS_WEIGHT * float(np.clip(self._progress(), 0.0, 1.0))
-        progress, self._potential = potential - self._potential, potential
+        progress = self._potential_change()
         timing = 0.0
         if self.outcome == "success" and self.reaction_s is not None:
             timing = TIMING_WEIGHT * max(0.0, 1.0 - self.reaction_s / self.success_window_s)

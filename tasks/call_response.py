@@ -184,7 +184,6 @@ class CallResponseEnv(HearingTaskEnv):
                 self.schedule_sound(f"loudspeaker{i}", label, ev.draw("loudspeaker", label), speaker, t,
                                     ev.config.loudspeaker_db, frame="world", detail="loudspeaker")
         self.initial_heading = _yaw(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
-        self._potential = FACING_WEIGHT * self._facing()
         self._update_base()
         self._in_view, self._image_uv = self.person_in_view()
 
@@ -251,10 +250,11 @@ class CallResponseEnv(HearingTaskEnv):
         """1 looking straight at the person, 0 with the person straight behind (ground truth)."""
         return 1.0 - math.acos(float(np.clip(self.person_direction()[0], -1.0, 1.0))) / math.pi
 
+    def _shaping_potential(self) -> float:
+        return FACING_WEIGHT * self._facing()
+
     def _reward_terms(self, outcome_reward: float) -> dict[str, float]:
-        potential = FACING_WEIGHT * self._facing()
-        facing, self._potential = potential - self._potential, potential
-        return {"reward_outcome": float(outcome_reward), "reward_facing": float(facing),
+        return {"reward_outcome": float(outcome_reward), "reward_facing": float(self._potential_change()),
                 "reward_time": -TIME_WEIGHT / self.max_episode_steps}
 
     # -- evaluation ---------------------------------------------------------------------------------

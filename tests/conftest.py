@@ -47,8 +47,8 @@ def model_cache(tmp_path_factory):
     old = os.environ.get("ACOUSTIC_SIM_CACHE")
     os.environ["ACOUSTIC_SIM_CACHE"] = str(path)
     if worker:
-        # The first worker trains the fast models every task test needs; the others wait and
-        # load them (two workers training the same models would double the suite's longest part).
+        # The fast models every task test needs, trained once for the run, not once per
+        # worker (that would double the suite's longest part).
         from filelock import FileLock
 
         from acoustic_sim.auditory.melcnn import MelCNN
