@@ -24,15 +24,24 @@ HRTF_HELP = ("'kemar' (bundled MIT KEMAR, mirror-symmetric ears), 'musashi' (the
 def add_parsers(sub) -> None:
     t = sub.add_parser(
         "train",
-        help="train (and cache) the SSDENet bank or the MelCNN detector",
-        description="Train a model from scratch and write it to the cache that the pipeline loads "
-        "(or to --out). Models are otherwise trained on first use; this rebuilds them.",
+        help="train (and cache) the SSDENet bank or the MelCNN detector, or learn a task policy",
+        description="ssdenet, melcnn: train a model from scratch and write it to the cache that the pipeline "
+        "loads (or to --out). Models are otherwise trained on first use; this rebuilds them. "
+        "policy: learn a policy for --task with stable-baselines3 PPO, from the env alone (skill action "
+        "mode and shaped reward by default, the fast auditory models), and write OUT/policy.zip, "
+        "OUT/policy.json (metadata), OUT/progress.csv (per-update metrics), OUT/episodes.csv and "
+        "OUT/learning_curve.png; run it with `acoustic-sim run TASK --policy learned:OUT`.",
     )
-    t.add_argument("model", choices=("ssdenet", "melcnn"), help="which model")
+    t.add_argument("model", choices=("ssdenet", "melcnn", "policy"), help="which model")
     t.add_argument("--hrtf", default="kemar", help=f"SSDENet only: the ears, {HRTF_HELP}")
-    t.add_argument("--profile", default="paper", choices=("paper", "fast"), help="model size (default paper; fast: small, for tests)")
-    t.add_argument("--seed", type=int, default=None, help="SSDENet only: training seed (default: the profile's)")
-    t.add_argument("--out", type=Path, default=None, help="checkpoint path (default: the cache)")
+    t.add_argument("--profile", default=None, choices=("paper", "fast"),
+                   help="model size (default paper; fast: small, for tests); policy: the env's auditory models (default fast)")
+    t.add_argument("--seed", type=int, default=None,
+                   help="SSDENet: training seed (default: the profile's); policy: the learner's and the envs' seed (default 0)")
+    t.add_argument("--out", type=Path, default=None, help="checkpoint path (default: the cache); policy: output folder")
+    from apps import learn  # the CLI's entry may reach up to the apps
+
+    learn.add_parser(t)
     t.set_defaults(func=cmd_train)
 
     loc = sub.add_parser(
@@ -170,6 +179,13 @@ def _check_wav(path: Path) -> None:
 def cmd_train(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    if args.model == "policy":
+        from apps.learn import cmd_train_policy
+
+        return cmd_train_policy(args)
+    if args.task is not None:
+        raise ConfigError("--task and the other policy options apply to `train policy` only")
+    args.profile = args.profile or "paper"
     if args.out is not None:
         check_writable(args.out, what="--out")  # before the training, not after
     if args.model == "ssdenet":

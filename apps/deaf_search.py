@@ -26,7 +26,8 @@ GRIDS = {
     "reverse-alarm": {"rate_deg_s": (8.0, 16.0), "wait_s": tuple(round(0.2 * i, 1) for i in range(1, 9))},
     "parking-brake": {"target_deg": (9.0, 11.0, 13.0), "rate_deg_s": (4.0, 8.0, 16.0),
                       "wait_s": (0.0, 0.3, 0.6, 1.0)},
-    "call-response": {"turn_deg_s": (15.0, 30.0, 60.0, 90.0), "direction": (1, -1)},
+    "call-response": {"turn_deg_s": (20.0, 29.0, 60.0, 120.0, 240.0), "step_deg": (0.0, 45.0, 90.0),
+                      "direction": (1, -1)},
 }
 """Per task, the values of each open-loop parameter searched (their product is the grid).
 ReverseAlarm: the push's speed (deg/s; the taught 8 and twice it) and the wait (s) from the
@@ -34,7 +35,9 @@ felt detent to letting go, 0.2-1.6 s (the relay's latency is 0.1-1.5 s: a wait o
 loses cars without winning any).
 ParkingBrake: lever angles (deg) around the first brake tooth (8 deg, the default
 requirement), speeds around the taught 8, waits up to the success window. CallResponse:
-sweeps (deg/s) from a slow scan to the neck's speed, both ways."""
+scan rates (deg/s) from a sweep slow enough to count as still (below 30 deg/s) to the
+wheelchair's top speed, as a sweep or in jumps of 45 or 90 deg (a stop to look after each),
+both ways."""
 
 DEFAULT_EPISODES = 40
 """Design seeds per grid point by default (100-139)."""

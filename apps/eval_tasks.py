@@ -58,6 +58,18 @@ def held_out(first: int, last: int) -> bool:
     return all(last < a or first > b for a, b in DESIGN_SEEDS)
 
 
+LEARNED = "learned:"
+"""A ``learned:PATH`` policy runs on the task it was trained for only (a ``learned`` row)."""
+
+
+def _runs_on(policy: str, task: str) -> bool:
+    if not policy.startswith(LEARNED):
+        return True
+    from policies.learned import load_metadata
+
+    return load_metadata(policy[len(LEARNED):])["task"] == task
+
+
 def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed: int = EVAL_SEED, quick: bool = False,
               progress: bool = True, policies=None) -> dict:
     """Run every task with every policy; returns what ``tasks.json`` holds.
@@ -85,20 +97,20 @@ def run_tasks(*, out, profile: str = "paper", episodes: int | None = None, seed:
         profile = "fast"
     episodes = (3 if quick else EPISODES) if episodes is None else episodes
     policies = tuple(dict.fromkeys(POLICIES if policies is None else policies))
-    for task in TASK_NAMES:  # every policy known before the first episode runs
-        for policy in policies:
-            policy_class(policy, task)
+    plan = [(task, policy) for task in TASK_NAMES for policy in policies if _runs_on(policy, task)]
+    for task, policy in plan:  # every policy known before the first episode runs
+        policy_class(policy, task)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for task in TASK_NAMES:
-        for policy in policies:
-            folder = out / task / policy.replace(":", ".")
-            result = run_episodes(task, policy, episodes, seed, folder, profile=profile, progress=progress)
-            s = result["summary"]
-            rows.append({"task": task, "policy": policy, "episodes": len(result["records"]),
-                         **{k: s[k] for k in ("success_rate", "success_rate_ci95", "false_release_rate",
-                                              "false_release_rate_ci95", "median_reaction_s", "outcomes")}})
+    for task, policy in plan:
+        folder = out / task / ("learned" if policy.startswith(LEARNED) else policy.replace(":", "."))
+        result = run_episodes(task, policy, episodes, seed, folder, profile=profile, progress=progress)
+        s = result["summary"]
+        rows.append({"task": task, "policy": "learned" if policy.startswith(LEARNED) else policy,
+                     "episodes": len(result["records"]),
+                     **{k: s[k] for k in ("success_rate", "success_rate_ci95", "false_release_rate",
+                                          "false_release_rate_ci95", "median_reaction_s", "outcomes")}})
     data = {"profile": profile, "seed": int(seed), "episodes": int(episodes), "quick": bool(quick),
             "policies": list(policies), "rows": rows}
     data["targets"] = targets(data)
@@ -188,14 +200,14 @@ SUCCESS_MIN = 0.9
 
 REACTION_MAX_S = {"reverse-alarm": 0.5, "parking-brake": 0.3}
 """Target: the scripted policy's median reaction in the cabin tasks (s; in the room a success
-is the person in view within 30 s)."""
+is a look at the caller within the response window, 1.5 s)."""
 
 WHY = {
     "reverse-alarm": "`policies.scripted.ScriptedReverseAlarm`",
     "parking-brake": "`policies.scripted.ScriptedParkingBrake`",
-    "call-response": "`policies.scripted.ScriptedCallResponse`",
+    "call-response": "docs/notes/call_response.md",
 }
-"""Where each task's misses are written down (the scripted policy's docstring)."""
+"""Where each task's misses are written down."""
 
 
 def targets(data: dict) -> list[dict]:
@@ -216,7 +228,7 @@ def targets(data: dict) -> list[dict]:
         s = rows.get((task, "scripted"))
         if s is None:
             continue
-        what = "success (the person in view within 30 s)" if task == "call-response" else "success"
+        what = "success (the caller looked at within 1.5 s)" if task == "call-response" else "success"
         out.append({"task": task, "target": f"scripted: {what} at least {SUCCESS_MIN}",
                     "result": _rate(s["success_rate"], s.get("success_rate_ci95")), "met": s["success_rate"] >= SUCCESS_MIN})
         limit = REACTION_MAX_S.get(task)
@@ -238,13 +250,13 @@ def targets(data: dict) -> list[dict]:
 
 
 def _target_lines(data: dict) -> list[str]:
-    rows = targets(data)
+    rows = data.get("targets") or targets(data)  # the run's own targets, as it measured them
     lines = ["**Against the targets** (this run's models; the headless tests check the same targets with the `fast` "
              "models over 20 episodes, `tests/test_policies.py`):", "", "| task | target | result | met |", "|---|---|---|---|"]
     lines += [f"| {r['task']} | {r['target']} | {r['result']} | {'yes' if r['met'] else 'no'} |" for r in rows]
     missed = list(dict.fromkeys(r["task"] for r in rows if not r["met"]))
     if missed:
-        lines += ["", "Where the episodes that miss fail, and what was tried, is in the scripted policy's docstring: "
+        lines += ["", "Where the episodes that miss fail, and what was tried: "
                   + ", ".join(WHY.get(t, t) for t in missed) + "."]
     return lines + [""]
 

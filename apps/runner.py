@@ -151,6 +151,20 @@ def summarize(records: list[dict]) -> dict:
     }
 
 
+def _learned_env_kwargs(policy: str, env_kwargs: dict | None) -> dict | None:
+    """A ``learned:PATH`` policy's action and reward modes merged into ``env_kwargs`` (others:
+    unchanged); ConfigError when the caller asked for other modes."""
+    from policies.learned import PREFIX, env_kwargs as learned_kwargs
+
+    if not str(policy).startswith(PREFIX):
+        return env_kwargs
+    needed = learned_kwargs(str(policy)[len(PREFIX):])
+    for key, value in (env_kwargs or {}).items():
+        if key in needed and value != needed[key]:
+            raise ConfigError(f"{policy} was trained with {key}={needed[key]!r}, not {value!r}")
+    return {**(env_kwargs or {}), **needed}
+
+
 def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile: str = "paper", progress: bool = True,
                  step_callback=None, rrd=None, camera: bool = True, env_kwargs: dict | None = None) -> dict:
     """Run ``episodes`` episodes and write ``out/episodes.json``.
@@ -206,6 +220,7 @@ def run_episodes(task: str, policy: str, episodes: int, seed: int, out, profile:
     from policies import policy_class
 
     policy_class(policy, task)  # an unloadable module:Class fails here, before anything is written
+    env_kwargs = _learned_env_kwargs(policy, env_kwargs)
     out = check_writable_folder(out, what="--out")  # before the episodes run, not after
     recorder = None
     if rrd is not None:
@@ -302,7 +317,8 @@ def add_parsers(sub) -> None:
     )
     r.add_argument("task", choices=TASK_NAMES, help="which task")
     r.add_argument("--policy", default="scripted", metavar="POLICY",
-                   help=f"which policy: {', '.join(POLICY_NAMES)}, or module:Class (a class built as Class(env) "
+                   help=f"which policy: {', '.join(POLICY_NAMES)}, learned:PATH (trained by `acoustic-sim train policy`), "
+                   "or module:Class (a class built as Class(env) "
                    "with reset(obs, info, seed) and act(obs, info), importable from here); default scripted")
     r.add_argument("--episodes", type=int, default=20, help="number of episodes (default 20)")
     r.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
@@ -312,11 +328,16 @@ def add_parsers(sub) -> None:
     r.add_argument("--paper-car", action="store_true",
                    help="reverse-alarm only: the paper's car (R at 15 deg, the alarm as R engages, a 1 s window) "
                    "instead of a car whose R and alarm latency are drawn per episode")
-    r.add_argument("--action-mode", choices=("joints", "skill"), default="joints",
+    r.add_argument("--paper-room", action="store_true",
+                   help="call-response only: the paper's room (one person, found when in view, no response window) "
+                   "instead of two or three people, one calling, to be looked at within 1.5 s of the call")
+    r.add_argument("--action-mode", choices=("joints", "skill"), default=None,
                    help="the env's action space: joints (default; what the built-in policies act in) or skill "
-                   "(the small learner's space of tasks/skills.py, for a module:Class policy written for it)")
-    r.add_argument("--reward-mode", choices=("sparse", "shaped"), default="sparse",
-                   help="the reward summed into each record's return: sparse (default) or shaped")
+                   "(the small learner's space of tasks/skills.py, for a module:Class policy written for it); "
+                   "a learned:PATH policy brings its own")
+    r.add_argument("--reward-mode", choices=("sparse", "shaped"), default=None,
+                   help="the reward summed into each record's return: sparse (default) or shaped; a learned:PATH "
+                   "policy brings its own")
     r.add_argument("--rrd", type=Path, default=None, metavar="FILE",
                    help="also write a rerun recording (FILE ends in .rrd) of all the episodes, one after another "
                    "on the sim_time timeline, numbered on an episode timeline")
@@ -340,10 +361,17 @@ def cmd_run(args) -> int:
         from tasks.reverse_alarm import PAPER_CAR
 
         env_kwargs = dict(PAPER_CAR)
+    if args.paper_room:
+        if args.task != "call-response":
+            raise ConfigError("--paper-room only applies to call-response")
+        from tasks.call_response import PAPER_ROOM
+
+        env_kwargs = dict(PAPER_ROOM)
     if args.action_mode == "skill" and ":" not in args.policy:
         raise ConfigError(f"--action-mode skill needs a module:Class policy written for it; the built-in "
                           f"{args.policy!r} acts in the joints mode")
-    env_kwargs = {**(env_kwargs or {}), "action_mode": args.action_mode, "reward_mode": args.reward_mode}
+    modes = {k: v for k, v in (("action_mode", args.action_mode), ("reward_mode", args.reward_mode)) if v is not None}
+    env_kwargs = {**(env_kwargs or {}), **modes}
     result = run_episodes(args.task, args.policy, args.episodes, args.seed, args.out, profile=args.profile,
                           rrd=args.rrd, camera=not args.no_camera, env_kwargs=env_kwargs)
     print(f"wrote {args.out / 'episodes.json'}")

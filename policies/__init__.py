@@ -9,7 +9,8 @@ never reads the percept (what hearing as a whole is worth is scripted minus deaf
 A policy is an object built from the env, ``Policy(env)``, with ``reset(obs, info, seed)``
 at the start of an episode and ``act(obs, info) -> action`` at every step (``info`` is for
 the oracle; the others read the observation only). Any such class plugs into ``run`` and
-``eval tasks`` as ``--policy module:Class``.
+``eval tasks`` as ``--policy module:Class``; a policy trained by ``acoustic-sim train policy``
+as ``--policy learned:PATH`` (:mod:`policies.learned`).
 
 >>> env = gymnasium.make("acoustic_sim/ReverseAlarm-v0", profile="fast")
 >>> policy = make_policy("scripted", env)
@@ -32,14 +33,26 @@ _MODULES = {"scripted": ("scripted", "POLICY_CLASSES"), "oracle": ("oracle", "PO
 
 
 def policy_class(name: str, task: str):
-    """The policy class of ``name`` (one of :data:`POLICIES`, or ``module:Class``) for ``task``.
+    """The policy class of ``name`` (one of :data:`POLICIES`, ``module:Class`` or ``learned:PATH``,
+    then a factory taking the env) for ``task``.
 
     Raises
     ------
     ConfigError
         For an unknown name, a ``module:Class`` that cannot be imported or is not a class
-        with ``reset`` and ``act``, or a task the named policy has no class for.
+        with ``reset`` and ``act``, a learned policy of another task or with missing files,
+        or a task the named policy has no class for.
     """
+    if name.startswith("learned:"):
+        import functools
+
+        from policies.learned import LearnedPolicy, load_metadata
+
+        path = name[len("learned:"):]
+        meta = load_metadata(path)  # missing or unreadable files fail here
+        if meta["task"] != task:
+            raise ConfigError(f"learned policy {path!r} was trained for {meta['task']}, not {task}")
+        return functools.partial(LearnedPolicy, path=path)
     if ":" in name:
         module_name, _, cls_name = name.partition(":")
         try:

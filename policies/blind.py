@@ -18,7 +18,7 @@ import numpy as np
 
 from policies.scripted_cabin import ScriptedParkingBrake, ScriptedReverseAlarm
 from policies.task_policy import heard
-from policies.turn_policy import TurnPolicy
+from policies.deaf import DeafCallResponse
 
 
 class BlindReverseAlarm(ScriptedReverseAlarm):
@@ -46,25 +46,20 @@ class BlindParkingBrake(ScriptedParkingBrake):
 POLICY_CLASSES["parking-brake"] = BlindParkingBrake
 
 
-class BlindCallResponse(TurnPolicy):
-    """On hearing a voice, spin the wheelchair to the left (not knowing where the voice is)
-    until ``spin_s`` after the voice was last heard."""
+class BlindCallResponse(DeafCallResponse):
+    """On hearing a voice, scan the room as the deaf policy does (its search's winner) from
+    that moment on: it knows when someone called, not where."""
 
     threshold = 0.5
-    spin_s = 2.5
 
     def reset(self, obs, info, seed: int | None = None) -> None:
         super().reset(obs, info, seed)
-        self.last_heard: float | None = None
+        self.first_heard: float | None = None
 
-    def act(self, obs, info) -> np.ndarray:
-        on, _ = heard(obs, "human_voice", self.threshold, 0.0)
-        if on:
-            self.last_heard = self.time_s
-        spinning = self.last_heard is not None and self.time_s - self.last_heard <= self.spin_s
-        w = self.wheel_speed if spinning else 0.0
-        self.steps += 1
-        return self.layout.action({"left_wheel": -w, "right_wheel": w})
+    def scan_start_s(self, obs) -> float | None:
+        if self.first_heard is None and heard(obs, "human_voice", self.threshold, 0.0)[0]:
+            self.first_heard = self.time_s
+        return self.first_heard
 
 
 POLICY_CLASSES["call-response"] = BlindCallResponse

@@ -13,8 +13,9 @@ ParkingBrake
     Move the lever along the taught motion at ``rate_deg_s`` to ``target_deg``, hold it
     there ``wait_s``, then let go.
 CallResponse
-    Sweep the gaze around the room at ``turn_deg_s`` (``direction`` +1 left, -1 right), the
-    neck first and the wheelchair beyond it, until the episode ends.
+    Scan the room at ``turn_deg_s`` (``direction`` +1 left, -1 right), in jumps of
+    ``step_deg`` with a stop to look after each (or a sweep), the neck first and the
+    wheelchair beyond it, until the episode ends.
 
 The class defaults are what :mod:`apps.deaf_search` found best on design seeds
 (``acoustic-sim deaf-search TASK`` reruns the search; every point's score is in
@@ -124,32 +125,48 @@ class DeafParkingBrake(DeafLeverPolicy):
 
 
 class DeafCallResponse(TurnPolicy):
-    """Sweep the gaze around the room at a fixed rate and direction (never listening).
+    """Scan the room at a fixed average rate and direction, never listening: in jumps of
+    ``step_deg`` (a stop after each, to look), or a continuous sweep (``step_deg`` 0; below
+    30 deg/s the gaze counts as still, so a slow sweep looks as it goes).
 
     Parameters
     ----------
     env : gymnasium.Env
         The task env.
     turn_deg_s : float, optional
-        Sweep rate of the gaze's target (deg/s, > 0); default the class's.
+        Average rate of the gaze's target (deg/s, > 0); default the class's.
     direction : int, optional
-        +1 to sweep left (counter-clockwise from above), -1 right; default the class's.
+        +1 to scan left (counter-clockwise from above), -1 right; default the class's.
+    step_deg : float, optional
+        The jump (deg, >= 0; 0: a sweep); default the class's.
     """
 
-    turn_deg_s = 90.0
-    direction = 1
-    delay_s = 0.0
+    turn_deg_s = 60.0
+    direction = -1
+    step_deg = 45.0
 
-    def __init__(self, env, *, turn_deg_s: float | None = None, direction: int | None = None) -> None:
+    def __init__(self, env, *, turn_deg_s: float | None = None, direction: int | None = None,
+                 step_deg: float | None = None) -> None:
         super().__init__(env)
         self.turn_deg_s = float(self.turn_deg_s if turn_deg_s is None else turn_deg_s)
         self.direction = int(self.direction if direction is None else direction)
-        if not (self.turn_deg_s > 0 and self.direction in (-1, 1)):
-            raise ValueError(f"deaf call-response policy needs turn_deg_s > 0 and direction +-1, got "
-                             f"{self.turn_deg_s}, {self.direction}")
+        self.step_deg = float(self.step_deg if step_deg is None else step_deg)
+        if not (self.turn_deg_s > 0 and self.direction in (-1, 1) and self.step_deg >= 0):
+            raise ValueError(f"deaf call-response policy needs turn_deg_s > 0, direction +-1 and step_deg >= 0, got "
+                             f"{self.turn_deg_s}, {self.direction}, {self.step_deg}")
+
+    def scan_start_s(self, obs) -> float | None:
+        """When the scan starts (s of the episode; None: not yet): at once."""
+        return 0.0
 
     def act(self, obs, info) -> np.ndarray:
-        sweep = self.turn_deg_s * max(self.time_s - self.delay_s, 0.0)
+        start = self.scan_start_s(obs)
+        if start is None:
+            self.steps += 1
+            return self.gaze_action(obs)
+        sweep = self.turn_deg_s * (self.time_s - start)
+        if self.step_deg > 0:
+            sweep = self.step_deg * (1.0 + math.floor(sweep / self.step_deg))  # the first jump at once
         self.target = self.direction * math.radians(sweep)
         action = self.gaze_action(obs)
         self.steps += 1
@@ -166,7 +183,7 @@ POLICY_CLASSES = {
 SEARCH_PARAMETERS = {
     "reverse-alarm": ("rate_deg_s", "wait_s"),
     "parking-brake": ("target_deg", "rate_deg_s", "wait_s"),
-    "call-response": ("turn_deg_s", "direction"),
+    "call-response": ("turn_deg_s", "step_deg", "direction"),
 }
 """The open-loop parameters :mod:`apps.deaf_search` chooses, per task."""
 

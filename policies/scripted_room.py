@@ -1,10 +1,10 @@
 """The scripted room policy: CallResponse, from the observation only.
 
-When a voice is heard, turn the head and eyes toward it, and the wheelchair when it is
-beyond the neck's reach (:class:`~policies.turn_policy.TurnPolicy`), until the person is in
-view. A direction that turned out to hold no person (the loudspeaker, a front-back
-confusion) is remembered and not checked again; a voice from there is tried at its
-front-back mirror image instead.
+When a voice is heard, turn the gaze toward it (:class:`~policies.turn_policy.TurnPolicy`),
+and keep listening while turning: every frame votes for its direction *and* its front-back
+mirror image in the room's fixed frame. A turning head moves the mirror image and leaves the
+true direction put, so the votes pile up on the caller and the gaze follows the peak. A
+direction looked at with nobody there is struck out.
 """
 
 from __future__ import annotations
@@ -17,68 +17,83 @@ from policies.task_policy import heard
 from policies.turn_policy import TurnPolicy, fixed_azimuth, wrap_rad
 from tasks.base import CLASSES, CONTROL_DT
 
+BINS = 72
+"""Azimuth bins of the vote map (5 deg each)."""
+
+_CENTRES = np.arange(BINS) * (2.0 * math.pi / BINS) - math.pi
+
 
 class ScriptedCallResponse(TurnPolicy):
-    """Turn toward the voice; if nobody is there, remember the direction and wait for the next
-    call (a voice from a remembered direction is tried at its front-back mirror image).
+    """Turn to the peak of a vote map over room azimuths, fed by the voice's frames.
 
-    A direction is decided from ``decide_frames`` frames in which the voice was heard with
-    a direction (or fewer, at least ``min_frames``, when the voice stops for ``gap_frames``):
-    the confidence-weighted circular mean of their azimuths in the fixed frame.
+    Each frame in which the voice is heard with a direction adds a von Mises bump (width
+    ``kappa``) at its azimuth in the fixed frame, weight ``direct_weight``, and one at its
+    front-back mirror image, weight 1 - ``direct_weight`` (the ears' front-back cues are
+    weak). After ``min_frames`` frames the gaze goes to the map's peak, or between it and a
+    runner-up within ``switch_margin`` of it and ``pair_deg`` of it (a front-back pair: both
+    are in view from the side between them), and follows that point when it moves by
+    ``move_deg``. Looked at for
+    ``look_s`` with the episode still running: nobody there; the direction is struck out.
+    The field of view at the start (``seen_deg`` either side) is struck out at once: the eyes
+    see that nobody stands there.
     """
 
     threshold = 0.5
     min_conf = 0.0
-    decide_frames = 8
     min_frames = 3
-    gap_frames = 10
-    look_s = 0.4
+    kappa = 12.0
+    direct_weight = 0.5
+    switch_margin = 1.5
     same_deg = 30.0
+    pair_deg = 85.0
+    move_deg = 12.0
+    look_s = 0.35
+    seen_deg = 45.0
 
     def reset(self, obs, info, seed: int | None = None) -> None:
         super().reset(obs, info, seed)
-        self.frames: list[tuple[float, float, float]] = []  # (azimuth, mirrored azimuth, weight)
-        self.gap = 0
-        self.checked: list[float] = []
+        self.votes = np.zeros(BINS)
+        self.frames = 0
+        self.struck = (np.abs(_CENTRES) > math.radians(self.seen_deg)).astype(float)
         self.settled_steps = 0
 
-    def _mean(self, k: int) -> float:
-        w = np.array([f[2] for f in self.frames])
-        a = np.array([f[k] for f in self.frames])
-        return math.atan2(float(np.sum(w * np.sin(a))), float(np.sum(w * np.cos(a))))
+    def _vote(self, azimuth: float, weight: float) -> None:
+        self.votes += weight * np.exp(self.kappa * (np.cos(_CENTRES - azimuth) - 1.0))
 
-    def _is_checked(self, az: float) -> bool:
-        return any(abs(wrap_rad(az - c)) < math.radians(self.same_deg) for c in self.checked)
+    def _peak(self) -> float:
+        return float(_CENTRES[int(np.argmax(self.votes * self.struck))])
 
-    def _decide(self) -> None:
-        direct, mirror = self._mean(0), self._mean(1)
-        self.frames.clear()
-        for candidate in (direct, mirror):
-            if not self._is_checked(candidate):
-                if self.target is None or abs(wrap_rad(candidate - self.target)) > math.radians(self.same_deg):
-                    self.target = candidate
-                    self.settled_steps = 0
-                return
+    def _strike(self, azimuth: float) -> None:
+        self.struck *= 1.0 - np.exp(self.kappa * (np.cos(_CENTRES - azimuth) - 1.0))
+
+    def _desired(self) -> float:
+        """The map's peak; between it and the runner-up when that one is nearly as strong and
+        near enough that both are in view from between (a front-back pair about the side)."""
+        scores = self.votes * self.struck
+        first = int(np.argmax(scores))
+        away = np.abs(np.angle(np.exp(1j * (_CENTRES - _CENTRES[first])))) > math.radians(self.same_deg)
+        second = int(np.argmax(np.where(away, scores, -1.0)))
+        a, b = float(_CENTRES[first]), float(_CENTRES[second])
+        if scores[second] * self.switch_margin >= scores[first] and abs(wrap_rad(b - a)) <= math.radians(self.pair_deg):
+            return wrap_rad(a + wrap_rad(b - a) / 2.0)
+        return a
 
     def act(self, obs, info) -> np.ndarray:
         on, d = heard(obs, "human_voice", self.threshold, self.min_conf)
         if on and d is not None:
             w = 0.1 + float(obs["class_conf"][CLASSES.index("human_voice")])
-            self.frames.append((fixed_azimuth(obs, d), fixed_azimuth(obs, d, mirror=True), w))
-            self.gap = 0
-        else:
-            self.gap += 1
-        if len(self.frames) >= self.decide_frames or (self.gap >= self.gap_frames and len(self.frames) >= self.min_frames):
-            self._decide()
-        elif self.gap >= self.gap_frames:
-            self.frames.clear()
+            self._vote(fixed_azimuth(obs, d), w * self.direct_weight)
+            self._vote(fixed_azimuth(obs, d, mirror=True), w * (1.0 - self.direct_weight))
+            self.frames += 1
+        if self.frames >= self.min_frames:
+            desired = self._desired()
+            if self.target is None or abs(wrap_rad(desired - self.target)) >= math.radians(self.move_deg):
+                self.target, self.settled_steps = desired, 0
         if self.gaze_settled(obs):
             self.settled_steps += 1
-            if self.settled_steps * CONTROL_DT >= self.look_s:  # looked, nobody there
-                self.checked.append(self.target)
-                if len(self.checked) > 4:
-                    self.checked = self.checked[-2:]
-                self.settled_steps = -10**9  # until a new target
+            if self.settled_steps * CONTROL_DT >= self.look_s:  # looked: nobody there
+                self._strike(self.target)
+                self.target, self.settled_steps = (self._peak() if float((self.votes * self.struck).max()) > 0 else None), 0
         action = self.gaze_action(obs)
         self.steps += 1
         return action

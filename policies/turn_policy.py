@@ -36,25 +36,28 @@ class TurnPolicy(TaskPolicy):
 
     neck_max_deg = 85.0
     eye_max_deg = 28.0
-    turn_body_deg = 100.0
-    stop_body_deg = 50.0
-    wheel_speed = 1.5
+    turn_body_deg = 140.0
+    stop_body_deg = 125.0
+    wheel_speed = 4.0
 
     def reset(self, obs, info, seed: int | None = None) -> None:
         super().reset(obs, info, seed)
         self.target: float | None = None
         self.turning_body = False
+        self.turn_sign = 1.0
 
     def gaze_action(self, obs) -> np.ndarray:
         values = {"left_wheel": 0.0, "right_wheel": 0.0}
         if self.target is not None:
             rel = wrap_rad(self.target - float(obs["base"][0]))
             if abs(rel) > math.radians(self.turn_body_deg):
+                if not self.turning_body or abs(rel) < math.radians(150.0):
+                    self.turn_sign = 1.0 if rel > 0 else -1.0  # near straight behind: keep turning the same way
                 self.turning_body = True
             elif abs(rel) < math.radians(self.stop_body_deg):
                 self.turning_body = False
             if self.turning_body:
-                w = self.wheel_speed * (1.0 if rel > 0 else -1.0)
+                w = self.wheel_speed * self.turn_sign
                 values.update(left_wheel=-w, right_wheel=w)
             neck = float(np.clip(rel, -math.radians(self.neck_max_deg), math.radians(self.neck_max_deg)))
             eye = float(np.clip(rel - neck, -math.radians(self.eye_max_deg), math.radians(self.eye_max_deg)))

@@ -146,6 +146,13 @@ TRAIN = [
     ("ssdenet-out-in-proc", f"ssdenet --out {PROC}/x.pt"),
     ("melcnn-with-hrtf", "melcnn --hrtf spherical"),
     ("melcnn-out-under-a-file", "melcnn --out {bad}/afile/x.pt"),
+    ("ssdenet-with-task", "ssdenet --task call-response"),
+    ("policy-without-task", "policy --out {out}/p"),
+    ("policy-without-out", "policy --task call-response"),
+    ("policy-steps-zero", "policy --task call-response --steps 0 --out {out}/p"),
+    ("policy-envs-zero", "policy --task call-response --envs 0 --out {out}/p"),
+    ("policy-with-hrtf", "policy --task call-response --hrtf spherical --out {out}/p"),
+    ("policy-out-under-a-file", "policy --task call-response --out {bad}/afile/p"),
 ]
 WAV_IN = [
     ("wav-missing", "{bad}/missing.wav"),
@@ -210,6 +217,8 @@ RUN = [
     ("seed-negative", "reverse-alarm --seed -1 --out {out}/r"),
     ("no-camera-without-rrd", "reverse-alarm --no-camera --out {out}/r"),
     ("paper-car-other-task", "parking-brake --paper-car --out {out}/r"),
+    ("paper-room-other-task", "reverse-alarm --paper-room --out {out}/r"),
+    ("learned-policy-missing", "call-response --policy learned:{bad}/nothing --out {out}/r"),
     ("skill-mode-built-in-policy", "reverse-alarm --action-mode skill --out {out}/r"),
     ("out-under-a-file", "reverse-alarm --out {bad}/afile/r --rrd {out}/r.rrd"),
     ("out-in-proc", f"reverse-alarm --out {PROC}/r"),

@@ -17,7 +17,8 @@ episodes, so a failure here is worth a look at the episode (``acoustic-sim run T
 --policy scripted --seed S --episodes 1 --profile fast``) before the models are blamed.
 These targets are the paper's car (``--paper-car``); in the hidden car (the default, R and the
 alarm's latency drawn per episode) the test asks that hearing decide: the scripted policy well
-above the deaf one (0.75 against 0.45 on these seeds; docs/notes/alarm_policy.md).
+above the deaf one (0.75 against 0.45 on these seeds; docs/notes/alarm_policy.md). So does
+CallResponse, with three people in the room (docs/notes/call_response.md).
 """
 
 import json
@@ -100,7 +101,7 @@ def test_oracle_meets_every_target(envs, task):
     summary, records = episodes(envs, task, "oracle", n=4)
     assert summary["success_rate"] == 1.0, summary["outcomes"]
     assert summary["false_release_rate"] == 0.0
-    limit = 2.0 if task == "call-response" else 0.05  # a step after the sound; the room: turning takes time
+    limit = 1.1 if task == "call-response" else 0.05  # a step after the sound; the room: turning and a look
     assert all(r["reaction_s"] is not None and r["reaction_s"] <= limit for r in records), [r["reaction_s"] for r in records]
 
 
@@ -151,11 +152,18 @@ def test_hearing_decides_the_hidden_car(envs, hearing):
         (scripted, deaf, failed)
 
 
-def test_scripted_call_response_finds_the_person(envs, hearing):
+def test_call_response_hearing_decides(envs, hearing):
+    """Three people, one calls: the deaf scan (the search's winner on these very seeds, so
+    its best case) looks at the caller in 6 of 20, the scripted policy in 14 of 20 with these
+    fast models (their front-back cues are near chance: docs/notes/call_response.md); 0.2
+    apart leaves room for another training draw. The deaf rate does not depend on the models."""
     need(hearing, "human_voice")
-    summary, records = episodes(envs, "call-response", "scripted")
-    assert summary["success_rate"] >= 0.9, summary
-    assert all(r["episode_s"] <= 30.0 for r in records if r["success"])
+    deaf, _ = episodes(envs, "call-response", "deaf")
+    scripted, records = episodes(envs, "call-response", "scripted")
+    assert deaf["success_rate"] <= 0.35, deaf
+    assert scripted["success_rate"] >= deaf["success_rate"] + 0.2, (scripted, deaf)
+    window = envs["call-response"].response_window_s
+    assert all(r["reaction_s"] <= window + 0.02 for r in records if r["success"])
 
 
 # -- the runner and the policies' API -----------------------------------------------------------------------

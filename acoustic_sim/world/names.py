@@ -12,6 +12,7 @@ ROBOT = "robot/"
 CAR = "car/"
 WHEELCHAIR = "wheelchair/"
 PERSON = "person/"
+BYSTANDERS = ("bystander1/", "bystander2/")  # the room's other people (the same asset as the person)
 SPEAKER = "speaker/"
 
 # -- robot (assets/musashi_head + upper body) --------------------------------------------
@@ -85,6 +86,7 @@ ROOM_INTERIOR_SITE = "room_interior"  # box-typed site: the room's air volume
 PERSON_ROOT_BODY = PERSON + "body"  # mocap body: place the person anywhere
 PERSON_HEAD_BODY = PERSON + "head"
 PERSON_MOUTH_SITE = PERSON + "mouth"
+BYSTANDER_HEAD_BODIES = tuple(b + "head" for b in BYSTANDERS)
 LOUDSPEAKER_SITE = SPEAKER + "cone"  # distractor loudspeaker (mocap)
 WHEELCHAIR_CHASSIS_BODY = WHEELCHAIR + "chassis"  # carries the free joint; origin on the floor between the wheels
 WHEELCHAIR_SEAT_SITE = WHEELCHAIR + "seat"  # the robot's hip point on the wheelchair

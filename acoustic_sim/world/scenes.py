@@ -109,6 +109,10 @@ class RoomConfig:
     speaker_yaw_deg: float = 140.0
     """Direction the loudspeaker faces, deg counter-clockwise from +x."""
 
+    bystanders: tuple = ()
+    """Other people in the room (at most ``len(names.BYSTANDERS)``, 2), each ``(x, y, yaw_deg)``:
+    floor point (m) and facing direction like the person's; silent (no emitter)."""
+
     def __post_init__(self) -> None:
         for field in ("wheelchair_position", "person_position", "speaker_position"):
             xy = np.asarray(getattr(self, field), dtype=float)
@@ -117,6 +121,14 @@ class RoomConfig:
         for field in ("wheelchair_yaw_deg", "person_yaw_deg", "speaker_yaw_deg"):
             if not np.isfinite(getattr(self, field)):
                 raise ConfigError(f"RoomConfig.{field} must be a finite angle in degrees, got {getattr(self, field)!r}")
+        try:
+            others = np.asarray(self.bystanders, dtype=float).reshape(-1, 3)
+        except (TypeError, ValueError):
+            others = None
+        if (others is None or len(others) != len(self.bystanders) or len(others) > len(names.BYSTANDERS)
+                or not np.all(np.isfinite(others))):
+            raise ConfigError(f"RoomConfig.bystanders must be at most {len(names.BYSTANDERS)} finite (x, y, yaw_deg) "
+                              f"triples, got {self.bystanders!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -249,6 +261,8 @@ def _build_room(config: RoomConfig) -> mujoco.MjSpec:
         ("person_position", config.person_position, config.person_yaw_deg, "person", "person.xml", names.PERSON),
         ("speaker_position", config.speaker_position, config.speaker_yaw_deg, "loudspeaker", "loudspeaker.xml", names.SPEAKER),
     )
+    placements += tuple((f"bystanders[{i}]", b[:2], b[2], "person", "person.xml", names.BYSTANDERS[i])
+                        for i, b in enumerate(config.bystanders))
     for field, xy, yaw, folder, file, prefix in placements:
         _check_floor_point(interior, field, xy)
         frame = spec.worldbody.add_frame(pos=[float(xy[0]), float(xy[1]), 0.0], quat=_yaw_quat(yaw))
