@@ -46,6 +46,7 @@ law for sounds from outside, which scheduled sounds outside the room follow too)
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import heapq
 import math
@@ -167,6 +168,12 @@ class EventsConfig:
     alarm_delay_s : float
         Latency (s, 0-5) of the reverse alarm's relay and electronics: it starts this long
         after the lever enters R, if the lever is still in R then (0: at once, the paper's).
+    prefetch : bool
+        Synthesize every requested sound when it is requested, and the mechanisms' signals at
+        :meth:`SoundEvents.reset` (no control step pays for synthesis: real-time runs), instead
+        of when each is first heard (the default: a reset does not synthesize the calls of a
+        30 s episode that ends after 2 s). The signals are the same either way: each emitter's
+        generator is drawn in request order.
     """
 
     alarm_db: float = 85.0
@@ -181,6 +188,7 @@ class EventsConfig:
     click_s: float = 0.035
     alarm_draw_s: float = 6.0
     alarm_delay_s: float = 0.0
+    prefetch: bool = False
 
     def __post_init__(self) -> None:
         for f in ("alarm_db", "gearshift_db", "ratchet_db", "key_db", "voice_db", "loudspeaker_db", "horn_db"):
@@ -446,6 +454,16 @@ def _unit_mean_power(parts: list[np.ndarray]) -> list[np.ndarray]:
 # -- the event source ----------------------------------------------------------------------------------
 
 
+class _Deferred:
+    """A requested sound's signal, drawn from its emitter's generator when first needed."""
+
+    __slots__ = ("emitter", "label", "signal")
+
+    def __init__(self, emitter: str, label: str) -> None:
+        self.emitter, self.label = emitter, label
+        self.signal: np.ndarray | None = None
+
+
 class SoundEvents:
     """Turn mechanism traces and requests into :class:`SoundEvent` s, block by block.
 
@@ -497,7 +515,8 @@ class SoundEvents:
         self._n_clicks = 0
         self._throws: list[np.ndarray] | None = None
         self._n_throws = 0
-        self._queue: list[tuple[int, int, str, str, str, np.ndarray | None]] = []
+        self._queue: list[tuple[int, int, str, str, str, np.ndarray | _Deferred | None]] = []
+        self._deferred: dict[str, collections.deque] = {}
         self._order = 0
         self.next_sample = 0
         """First sample of the next block to process (requests before it are refused)."""
@@ -536,15 +555,48 @@ class SoundEvents:
             if brake_angle is None or pawl_angle is None:
                 raise ConfigError("SoundEvents.reset: this scene has a parking brake; pass brake_angle and pawl_angle (rad)")
             self.ratchet.reset(brake_angle, pawl_angle)
-        # The beeper and the ratchet are drawn once, here rather than at their first event,
-        # so that no control step pays for synthesizing them.
-        c = self.config
-        if self.gearshift is not None and "alarm" in self.emitters and self._alarm_loop is None:
-            self._alarm_loop = alarm_loop(self._rngs["alarm"], seconds=c.alarm_draw_s, sample_rate=self.sample_rate)
-        if self.ratchet is not None and "ratchet" in self.emitters and self._clicks is None:
-            self._clicks = ratchet_clicks(self._rngs["ratchet"], click_s=c.click_s, sample_rate=self.sample_rate)
-        if self.gearshift is not None and "gearshift" in self.emitters and self._throws is None:
-            self._throws = gearshift_throws(self._rngs["gearshift"], seconds=c.gearshift_draw_s, sample_rate=self.sample_rate)
+        if self.config.prefetch:  # drawn here rather than at their first event: no control step pays
+            if self.gearshift is not None and "alarm" in self.emitters:
+                self._beeper()
+            if self.ratchet is not None and "ratchet" in self.emitters:
+                self._ratchet_clicks()
+            if self.gearshift is not None and "gearshift" in self.emitters:
+                self._gear_throws()
+
+    # Each mechanism's signal, drawn once from its emitter's own generator (which nothing else
+    # draws from), whenever that is: the same signal at reset or at the first event.
+    def _beeper(self) -> np.ndarray:
+        if self._alarm_loop is None:
+            self._alarm_loop = alarm_loop(self._rngs["alarm"], seconds=self.config.alarm_draw_s, sample_rate=self.sample_rate)
+        return self._alarm_loop
+
+    def _ratchet_clicks(self) -> list[np.ndarray]:
+        if self._clicks is None:
+            self._clicks = ratchet_clicks(self._rngs["ratchet"], click_s=self.config.click_s, sample_rate=self.sample_rate)
+        return self._clicks
+
+    def _gear_throws(self) -> list[np.ndarray]:
+        if self._throws is None:
+            self._throws = gearshift_throws(self._rngs["gearshift"], seconds=self.config.gearshift_draw_s,
+                                            sample_rate=self.sample_rate)
+        return self._throws
+
+    def _later(self, emitter: str, label: str) -> _Deferred:
+        """A requested sound's signal, drawn when first needed (at once with ``prefetch``)."""
+        d = _Deferred(emitter, label)
+        self._deferred.setdefault(emitter, collections.deque()).append(d)
+        if self.config.prefetch:
+            self._resolve(d)
+        return d
+
+    def _resolve(self, d: _Deferred) -> np.ndarray:
+        """``d``'s signal: the emitter's earlier requests are drawn first, so each request gets
+        the draw it would have had when it was made."""
+        queue = self._deferred[d.emitter]
+        while d.signal is None:
+            first = queue.popleft()
+            first.signal = self._draw(first.emitter, first.label)
+        return d.signal
 
     # -- requests -------------------------------------------------------------------------------
     def _request_sample(self, t: float | None, what: str) -> int:
@@ -590,7 +642,7 @@ class SoundEvents:
         self._need_emitter("voice", "schedule_call")
         s = self._request_sample(t, "schedule_call")
         x = self._signal(signal, "schedule_call")
-        self._push(s, "voice_call", "voice", "", x if x is not None else self._draw("voice", "human_voice"))
+        self._push(s, "voice_call", "voice", "", x if x is not None else self._later("voice", "human_voice"))
         return s
 
     def schedule_key_turn(self, t: float | None = None, *, signal=None) -> int:
@@ -598,7 +650,7 @@ class SoundEvents:
         self._need_emitter("ignition", "schedule_key_turn")
         s = self._request_sample(t, "schedule_key_turn")
         x = self._signal(signal, "schedule_key_turn")
-        self._push(s, "key_turn", "ignition", "", x if x is not None else self._draw("ignition", "key_turning"))
+        self._push(s, "key_turn", "ignition", "", x if x is not None else self._later("ignition", "key_turning"))
         return s
 
     def schedule_distractor(self, t: float | None = None, label: str = "car_horn", *, signal=None) -> int:
@@ -612,7 +664,7 @@ class SoundEvents:
             raise ConfigError(f"schedule_distractor: the cabin's outside distractor is the car horn, not {label!r}")
         s = self._request_sample(t, "schedule_distractor")
         x = self._signal(signal, "schedule_distractor")
-        self._push(s, "distractor", emitter, label, x if x is not None else self._draw(emitter, label))
+        self._push(s, "distractor", emitter, label, x if x is not None else self._later(emitter, label))
         return s
 
     def schedule_horn(self, t: float | None = None, *, signal=None) -> int:
@@ -650,6 +702,8 @@ class SoundEvents:
         self._need_emitter(emitter, "draw")
         if label not in sounds.SOUND_CLASSES:
             raise ConfigError(f"draw: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
+        for pending in list(self._deferred.get(emitter, ())):  # earlier requests draw first, as when made
+            self._resolve(pending)
         return self._draw(emitter, label)
 
     def _draw(self, emitter: str, label: str) -> np.ndarray:
@@ -721,6 +775,8 @@ class SoundEvents:
         out = []
         while self._queue and self._queue[0][0] < b1:
             sample, _, kind, emitter, detail, signal = heapq.heappop(self._queue)
+            if isinstance(signal, _Deferred):
+                signal = self._resolve(signal)
             ev = self._make(kind, emitter, max(sample, b0), detail, signal)
             if ev is not None:
                 out.append(ev)
@@ -741,18 +797,20 @@ class SoundEvents:
             if self.alarm_on:
                 return None
             self.alarm_on = True
-            return SoundEvent(kind, "reverse_alarm", emitter, sample, c.alarm_db, detail, self._alarm_loop, loop=True)
+            return SoundEvent(kind, "reverse_alarm", emitter, sample, c.alarm_db, detail, self._beeper(), loop=True)
         if kind == "alarm_stop":
             if not self.alarm_on:
                 return None
             self.alarm_on = False
             return SoundEvent(kind, "reverse_alarm", emitter, sample, c.alarm_db, detail)
         if kind == "gear_change":
-            x = self._throws[self._n_throws % len(self._throws)]
+            throws = self._gear_throws()
+            x = throws[self._n_throws % len(throws)]
             self._n_throws += 1
             return SoundEvent(kind, "gearshift", emitter, sample, c.gearshift_db, detail, x)
         if kind == "ratchet_click":
-            x = self._clicks[self._n_clicks % len(self._clicks)]
+            clicks = self._ratchet_clicks()
+            x = clicks[self._n_clicks % len(clicks)]
             self._n_clicks += 1
             return SoundEvent(kind, "ratchet", emitter, sample, c.ratchet_db, detail, x)
         if kind == "key_turn":
