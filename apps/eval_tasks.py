@@ -147,14 +147,15 @@ def figure(out) -> Path:
     cell = {(r["task"], r["policy"]): r for r in data["rows"]}
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.2))
     x = np.arange(len(task_names))
-    policies = data.get("policies", list(dict.fromkeys(r["policy"] for r in data["rows"])))
+    policies = list(dict.fromkeys(r["policy"] for r in data["rows"]))  # a learned row runs on its own task only
+    empty: dict = {}
     width = 0.8 / len(policies)
     panels = (("success_rate", "success rate", (0, 1.05)), ("false_release_rate", "false-release rate", (0, 1.05)),
               ("median_reaction_s", "median reaction (s)", None))
     for ax, (key, label, ylim) in zip(axes, panels):
         for i, policy in enumerate(policies):
-            vals = [cell[t, policy][key] for t in task_names]
-            cis = [cell[t, policy].get(f"{key}_ci95") for t in task_names]
+            vals = [cell.get((t, policy), empty).get(key) for t in task_names]
+            cis = [cell.get((t, policy), empty).get(f"{key}_ci95") for t in task_names]
             err = None
             if any(c is not None for c in cis):  # the 95 % interval of a rate
                 err = np.array([[np.nan, np.nan] if c is None or v is None else [v - c[0], c[1] - v]

@@ -232,6 +232,7 @@ def learning_curve(episodes_csv, png, *, title: str = "") -> Path:
     """Success rate and return (running means over :data:`SUCCESS_WINDOW` episodes) against
     env steps, from ``episodes.csv``."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -248,8 +249,9 @@ def learning_curve(episodes_csv, png, *, title: str = "") -> Path:
             ax.plot(x, y, ".", ms=2, alpha=0.3, color="0.5")
             ax.plot(x[k - 1:], mean, color="C0", label=f"running mean of {k} episodes")
             ax.set_xlabel("env steps")
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v / 1000:g}k"))
             ax.set_ylabel(label)
-            ax.legend(loc="lower right", fontsize=8)
+            ax.legend(loc="upper left", fontsize=8)
         axes[0].set_ylim(-0.05, 1.05)
     fig.suptitle(title)
     fig.tight_layout()

@@ -250,8 +250,9 @@ def _scaling(profile: str, steps: int, task: str = "call-response") -> dict:
     return out
 
 
-def run(quick: bool = False) -> dict:
-    """Measure; returns the JSON-ready result (``acoustic-sim bench env``)."""
+def run(quick: bool = False, profile: str | None = None) -> dict:
+    """Measure; returns the JSON-ready result (``acoustic-sim bench env``); ``profile``: that
+    profile only (default both, ``fast`` only when ``quick``)."""
     from apps.runner import make_env  # noqa: F401  (import check before timing)
 
     steps, repeats = (60, 1) if quick else (400, 5)
@@ -263,7 +264,7 @@ def run(quick: bool = False) -> dict:
         "learner_targets": LEARNER_TARGETS,
         "profiles": {},
     }
-    profiles = ("fast",) if quick else ("fast", "paper")
+    profiles = (profile,) if profile else (("fast",) if quick else ("fast", "paper"))
     for profile in profiles:
         entry = {"tasks": _singles(profile, steps, repeats)}
         single = [v["env_steps_per_s"] for v in entry["tasks"].values()]

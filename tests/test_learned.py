@@ -107,3 +107,12 @@ def test_bad_training_arguments_are_config_errors(tmp_path):
     with pytest.raises(ConfigError, match="unknown task"):
         learn.train_policy("juggling", out=tmp_path / "x")
     assert not (tmp_path / "x").exists()
+
+
+def test_eval_tasks_runs_a_learned_policy_on_its_own_task(trained, tmp_path):
+    from apps.eval_tasks import run_tasks
+
+    out, _, _ = trained
+    data = run_tasks(out=tmp_path / "tasks", quick=True, episodes=1, progress=False, policies=[f"learned:{out}"])
+    assert [(r["task"], r["policy"]) for r in data["rows"]] == [("call-response", "learned")]
+    assert (tmp_path / "tasks" / "call-response" / "learned" / "episodes.json").is_file()
