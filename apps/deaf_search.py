@@ -4,7 +4,7 @@ that maximise success on design seeds.
 The deaf policy (:mod:`policies.deaf`) is only a bound on what hearing is worth if it is the
 *best* behaviour that never listens, not a strawman. So its parameters are searched: every
 point of the task's grid (:data:`GRIDS`; the lever's speed, wait and angle, or the room's
-sweep rate and direction) runs on the same design seeds (by default the first
+scan rate, jump and direction) runs on the same design seeds (by default the first
 ``--episodes`` of 100-299, :data:`apps.eval_tasks.DESIGN_SEEDS`), and the point with the
 highest success wins (ties: the lower median reaction, then the grid's order). The
 percept is never read, so the auditory models do not change a deaf episode; the search uses
@@ -118,9 +118,9 @@ def add_parsers(sub) -> None:
     p = sub.add_parser(
         "deaf-search",
         help="search the deaf baseline's open-loop parameters on design seeds",
-        description="Runs the deaf policy (never listening: push the lever at a speed to a felt detent or an angle, hold, let go; or "
-        "sweep the gaze at a rate) at every point of the task's parameter grid on the same design seeds, and "
-        "prints the best points; writes OUT/deaf_search.json. The winners are the deaf policy's defaults "
+        description="Runs the deaf policy (never listening: push the lever at a speed to a felt detent or an angle, hold, "
+        "let go; or scan the room at a rate, in jumps with stops to look) at every point of the task's parameter grid on "
+        "the same design seeds, and prints the best points; writes OUT/deaf_search.json. The winners are the deaf policy's defaults "
         "(policies/deaf.py). The percept is never read, so the fast auditory models are used.",
     )
     p.add_argument("task", choices=tuple(GRIDS), help="which task")

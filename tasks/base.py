@@ -397,8 +397,9 @@ class HearingTaskEnv(gym.Env):
             Short name, unique in the episode.
         label : str
             The sound class (one of :data:`CLASSES`).
-        signal : array_like, shape (n,)
-            Unit-RMS mono signal at 44100 Hz.
+        signal : array_like, shape (n,), or callable
+            Unit-RMS mono signal at 44100 Hz, or a zero-argument callable giving it when the sound
+            starts (e.g. ``coupling.events.draw_later(emitter, label)``: drawn only if heard).
         position : array_like, shape (3,)
             Where it plays from (m): room frame (``frame="room"``, the acoustic room's, origin
             at a corner of the air volume; ``coupling.head_position`` is in it) or MuJoCo's

@@ -270,7 +270,7 @@ class CallResponseEnv(HearingTaskEnv):
             speaker = self.view.site_position(names.LOUDSPEAKER_SITE)
             for i, (t, label) in enumerate(plays):
                 # Drawn from the loudspeaker emitter's own generator: the sounds it would play itself.
-                self.schedule_sound(f"loudspeaker{i}", label, ev.draw("loudspeaker", label), speaker, t,
+                self.schedule_sound(f"loudspeaker{i}", label, ev.draw_later("loudspeaker", label), speaker, t,
                                     ev.config.loudspeaker_db, frame="world", detail="loudspeaker")
         self.initial_heading = _yaw(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
         self._update_base()

@@ -31,7 +31,7 @@ def _episode(task: str, seed: int, steps: int = 400):
         env.close()
 
 
-@pytest.mark.parametrize("task, seed", [("reverse-alarm", 3), ("parking-brake", 4), ("call-response", 5)])
+@pytest.mark.parametrize("task, seed", [("reverse-alarm", 3), ("parking-brake", 4), ("call-response", 8)])
 def test_prefetch_and_deferred_sounds_give_the_same_episode(task, seed, monkeypatch):
     lazy = _episode(task, seed)
     init = events.SoundEvents.__init__
@@ -43,6 +43,8 @@ def test_prefetch_and_deferred_sounds_give_the_same_episode(task, seed, monkeypa
     eager = _episode(task, seed)
     assert lazy[1] == eager[1] and lazy[2] == eager[2]
     assert any(k in ("alarm_start", "ratchet_click", "voice_call") for k, _ in lazy[1]), lazy[1]
+    if task == "call-response":  # seed 8: the loudspeaker plays (deferred with draw_later) before the call
+        assert ("distractor", "voice_call") == tuple(k for k, _ in lazy[1][:2]), lazy[1]
     assert len(lazy[0]) == len(eager[0])
     for a, b in zip(lazy[0], eager[0]):
         assert a.keys() == b.keys()
@@ -63,3 +65,20 @@ def test_a_draw_after_deferred_requests_gets_what_it_got_before():
 
     for a, b in zip(run(False), run(True)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_draw_later_keeps_the_request_order():
+    """Deferred draws resolved in any order get the signals of draws made in request order."""
+    def ev():
+        e = events.SoundEvents(np.random.default_rng(3), emitters=["loudspeaker"])
+        e.reset(sample=0)
+        return e
+
+    eager = ev()
+    a, b = eager.draw("loudspeaker", "key_turning"), eager.draw("loudspeaker", "car_horn")
+    lazy = ev()
+    la, lb = lazy.draw_later("loudspeaker", "key_turning"), lazy.draw_later("loudspeaker", "car_horn")
+    np.testing.assert_array_equal(lb(), b)
+    np.testing.assert_array_equal(la(), a)
+    with pytest.raises(Exception, match="unknown sound class"):
+        lazy.draw_later("loudspeaker", "kazoo")

@@ -706,6 +706,18 @@ class SoundEvents:
             self._resolve(pending)
         return self._draw(emitter, label)
 
+    def draw_later(self, emitter: str, label: str):
+        """:meth:`draw`, deferred: a zero-argument callable that gives the same signal when
+        called (at once with ``prefetch``), which a scheduled sound calls when it starts
+        (:meth:`acoustic_sim.world.soundscape.Soundscape.schedule_sound`). Raises as :meth:`draw`."""
+        if emitter not in EMITTERS:
+            raise ConfigError(f"draw_later: unknown emitter {emitter!r}; valid: {', '.join(EMITTERS)}")
+        self._need_emitter(emitter, "draw_later")
+        if label not in sounds.SOUND_CLASSES:
+            raise ConfigError(f"draw_later: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
+        d = self._later(emitter, label)
+        return lambda: self._resolve(d)
+
     def _draw(self, emitter: str, label: str) -> np.ndarray:
         # Requested sounds are drawn when requested (a task's reset), not in a control step.
         return sounds.generate(label, self._rngs[emitter], sample_rate=self.sample_rate)

@@ -56,6 +56,13 @@ SOURCE_PREFIX = "task/"
 the sounds are a task's, whoever schedules them)."""
 
 
+
+def _checked_signal(signal, what: str) -> np.ndarray:
+    x = np.asarray(signal, dtype=float)
+    if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
+        raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array (unit RMS), got shape {x.shape}")
+    return x
+
 @dataclasses.dataclass
 class ScheduledSound:
     """A sound played from a fixed point of the acoustic room (``tasks.task_sounds.TaskSound``).
@@ -86,12 +93,14 @@ class ScheduledSound:
     label: str
     kind: str
     detail: str
-    signal: np.ndarray
+    signal: np.ndarray | None
     position: np.ndarray
     level_db: float
     start: int
     added: bool = False
     removed: bool = False
+    later: object = None
+    """A zero-argument callable that gives ``signal`` when the sound starts (None: given)."""
 
     @property
     def end(self) -> int:
@@ -139,8 +148,11 @@ class Soundscape:
             ``source`` are ``task/<name>``.
         label : str
             The sound class (one of ``SOUND_CLASSES``): the ground truth's label.
-        signal : array_like, shape (n,)
-            Unit-RMS mono signal at the coupling's sample rate (44100 Hz), finite, n >= 1.
+        signal : array_like, shape (n,), or callable
+            Unit-RMS mono signal at the coupling's sample rate (44100 Hz), finite, n >= 1; or a
+            zero-argument callable that returns it when the sound starts (synthesized only if
+            the episode gets there: :meth:`SoundEvents.draw_later
+            <acoustic_sim.world.events.SoundEvents.draw_later>`).
         position : array_like, shape (3,)
             Where it plays from (m), in ``frame``; inside the room at least 0.05 m from
             every wall, unless ``outside``.
@@ -181,9 +193,8 @@ class Soundscape:
             raise ConfigError(f"{what}: a scheduled sound named {name!r} exists already in this episode")
         if label not in SOUND_CLASSES:
             raise ConfigError(f"{what}: unknown sound class {label!r}; valid: {', '.join(SOUND_CLASSES)}")
-        x = np.asarray(signal, dtype=float)
-        if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
-            raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array (unit RMS), got shape {x.shape}")
+        later = signal if callable(signal) else None
+        x = None if later is not None else _checked_signal(signal, what)
         if not (isinstance(level_db, (int, float, np.floating, np.integer)) and np.isfinite(level_db) and -20.0 <= level_db <= 160.0):
             raise ConfigError(f"{what}: level_db must be -20..160 dB SPL at 1 m, got {level_db!r}")
         if not (isinstance(t, (int, float, np.floating, np.integer)) and np.isfinite(t)):
@@ -209,7 +220,7 @@ class Soundscape:
         else:
             p = c.renderer.room.check_inside(p, what=f"{what}: position (room frame)")
         sound = ScheduledSound(name=source, label=label, kind=str(kind), detail=str(detail), signal=x, position=p,
-                          level_db=level, start=start)
+                               level_db=level, start=start, later=later)
         self.sounds.append(sound)
         return sound
 
@@ -249,6 +260,8 @@ class Soundscape:
         out = []
         for s in self.sounds:
             if not s.added and s.start < b1:
+                if s.signal is None:
+                    s.signal = _checked_signal(s.later(), f"schedule_sound({s.name[len(SOURCE_PREFIX):]!r})")
                 r.add_source(s.name, s.signal, s.position, level_db=s.level_db, start=max(s.start, b0))
                 s.added = True
                 self._active.append({"source": s.name, "label": s.label, "start": s.start, "end": s.end, "position": s.position})
