@@ -137,6 +137,8 @@ class HearingTaskEnv(gym.Env):
     """How the pipeline fuses a frame's bins (``AuditoryPipeline(fusion=)``,
     :data:`acoustic_sim.auditory.ssdenet.FUSIONS`): ``"product"``, the default, or the
     paper's ``"sum"``."""
+    timeout_reward = 0.0
+    """The outcome reward when the episode reaches its limit (the cabin's: -1, a failure)."""
     warmup_s = 0.5
     """Seconds the ears listen before the episode starts, holding the start pose
     (:meth:`HearingLoop.warm_up <acoustic_sim.loop.HearingLoop.warm_up>`): the ears' history
@@ -363,6 +365,7 @@ class HearingTaskEnv(gym.Env):
         truncated = not terminated and self.steps >= self.max_episode_steps
         if truncated and self.outcome == "running":
             self.outcome = "timeout"
+            reward = self.timeout_reward
         terms = self._reward_terms_last = self._reward_terms(reward)
         if self.reward_mode == "shaped":
             reward = float(sum(terms.values()))

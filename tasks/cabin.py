@@ -106,7 +106,10 @@ class CabinLeverTask(HearingTaskEnv):
     spec_action_notes: ClassVar = ("A grasp command > 0 closes an open hand on its lever if the palm is within 5 cm "
                                    "of the handle; <= 0 opens it.")
     spec_observation_rows: ClassVar = (("grasp", "(2,)", "1 if the left / right hand holds its lever"),)
-    spec_rewards: ClassVar = "+1 on success, -1 on failure (both at the episode's end), 0 otherwise."
+    spec_rewards: ClassVar = "+1 on success, -1 on failure, the time limit included (both at the episode's end), 0 otherwise."
+    timeout_reward = -1.0
+    """Holding on to the limit fails the task too: at 0 a learner learns to keep still (PPO on
+    ReverseAlarm timed out in 212 of 437 episodes; docs/notes/learned_policies.md)."""
     spec_shaped_rewards: ClassVar = (
         f"``reward_outcome`` (the sparse reward), ``reward_progress`` (the change of {PROGRESS_WEIGHT:g} x the "
         "lever's progress toward the position the task asks for, 0 at rest, 1 there: a potential, so over an "

@@ -66,6 +66,7 @@ def test_skill_zero_action_runs_to_the_limit(env_id):
             assert info["outcome"] == "too_late" and u.time_s - info["target_onset_s"] >= u.response_window_s
         else:
             assert step == limit and info["outcome"] == "timeout"
+            assert info["reward_outcome"] == -1.0  # keeping still to the limit fails the cabin's task
         if "holding" in info:
             assert info["holding"]
         # the servos hold the start pose (within 1 deg: what the lever's spring and the base's wobble move)
