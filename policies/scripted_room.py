@@ -4,7 +4,7 @@ When a voice is heard, turn the gaze toward it (:class:`~policies.turn_policy.Tu
 and keep listening while turning: every frame votes for its direction *and* its front-back
 mirror image in the room's fixed frame. A turning head moves the mirror image and leaves the
 true direction put, so the votes pile up on the caller and the gaze follows the peak. A
-direction looked at with nobody there is struck out.
+direction looked at with nobody there is struck out. Measurements: docs/notes/call_response.md.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ class ScriptedCallResponse(TurnPolicy):
     weak). After ``min_frames`` frames the gaze goes to the map's peak, or between it and a
     runner-up within ``switch_margin`` of it and ``pair_deg`` of it (a front-back pair: both
     are in view from the side between them), and follows that point when it moves by
-    ``move_deg``. Looked at for
-    ``look_s`` with the episode still running: nobody there; the direction is struck out.
-    The field of view at the start (``seen_deg`` either side) is struck out at once: the eyes
-    see that nobody stands there.
+    ``move_deg``. Looked at for ``look_s`` with the episode still running: nobody there; the
+    direction is struck out. The start's field of view (``seen_deg`` either side) is struck
+    out at once: the task places every person out of view (what the eyes would tell a robot
+    that used them).
     """
 
     threshold = 0.5
