@@ -20,6 +20,7 @@ from pathlib import Path
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.files import atomic_path, write_text
+from policies.learned import PREFIX as LEARNED
 
 POLICIES = ("scripted", "oracle", "blind", "deaf", "random")
 """The policies compared by default, in the table's order: what the percept is worth is
@@ -58,11 +59,10 @@ def held_out(first: int, last: int) -> bool:
     return all(last < a or first > b for a, b in DESIGN_SEEDS)
 
 
-LEARNED = "learned:"
-"""A ``learned:PATH`` policy runs on the task it was trained for only (a ``learned`` row)."""
 
 
 def _runs_on(policy: str, task: str) -> bool:
+    """Whether ``eval tasks`` runs ``policy`` on ``task``: a learned one on its own task only."""
     if not policy.startswith(LEARNED):
         return True
     from policies.learned import load_metadata

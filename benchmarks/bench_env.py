@@ -83,11 +83,17 @@ def _singles(profile: str, steps: int, repeats: int) -> dict:
             for task, r in rates.items()}
 
 
-def _make(task: str, profile: str):
+def _make(task: str, profile: str, *, one_thread: bool = False, **env_kwargs):
+    """A picklable env factory for the vector envs (``one_thread``: one torch thread in the worker)."""
+
     def thunk():
         from apps.runner import make_env
 
-        return make_env(task, profile=profile)
+        if one_thread:
+            import torch
+
+            torch.set_num_threads(1)
+        return make_env(task, profile=profile, **env_kwargs)
 
     return thunk
 
@@ -200,15 +206,7 @@ def _learner(profile: str, steps: int) -> dict:
 
 
 def _skill_env(task: str, profile: str):
-    def thunk():
-        import torch
-
-        from apps.runner import make_env
-
-        torch.set_num_threads(1)
-        return make_env(task, profile=profile, action_mode="skill", reward_mode="shaped")
-
-    return thunk
+    return _make(task, profile, one_thread=True, action_mode="skill", reward_mode="shaped")
 
 
 def _scaling(profile: str, steps: int, task: str = "call-response") -> dict:

@@ -43,12 +43,14 @@ def policy_class(name: str, task: str):
         with ``reset`` and ``act``, a learned policy of another task or with missing files,
         or a task the named policy has no class for.
     """
-    if name.startswith("learned:"):
+    from policies.learned import PREFIX
+
+    if name.startswith(PREFIX):
         import functools
 
         from policies.learned import LearnedPolicy, load_metadata
 
-        path = name[len("learned:"):]
+        path = name[len(PREFIX):]
         meta = load_metadata(path)  # missing or unreadable files fail here
         if meta["task"] != task:
             raise ConfigError(f"learned policy {path!r} was trained for {meta['task']}, not {task}")

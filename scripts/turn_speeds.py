@@ -56,10 +56,9 @@ class WrongWayOracle(DelayedOracle):
                 self.long_way = 0.0
             else:
                 w = self.wheel_speed * self.long_way
-                values = {"left_wheel": -w, "right_wheel": w,
-                          "neck_yaw": float(np.clip(self.long_way * math.pi, -math.radians(self.neck_max_deg), math.radians(self.neck_max_deg))),
-                          "eye_yaw": self.long_way * math.radians(self.eye_max_deg)}
-                return self.layout.action(values)
+                return self.layout.action({"left_wheel": -w, "right_wheel": w,
+                                           "neck_yaw": self.long_way * math.radians(self.neck_max_deg),
+                                           "eye_yaw": self.long_way * math.radians(self.eye_max_deg)})
         return action
 
 

@@ -73,8 +73,8 @@ class CallResponseEnv(HearingTaskEnv):
     Description
     -----------
     The robot sits on a wheelchair in a 6 x 5 m room (scene ``room``, RT60 about 0.5 s).
-    Three people (``people``: two or three, or one) stand 1.4-2.4 m away at random bearings, facing the robot; one of them
-    (the *person*, the caller) calls ("Musashi, over here!": ``human_voice``) soon after the
+    Three people (``people``: two or three, or one) stand 1.4-2.4 m away at random bearings,
+    facing the robot; one of them (the *person*, the caller) calls ("Musashi, over here!": ``human_voice``) soon after the
     start, and again every 5-7 s; the others are silent. A loudspeaker elsewhere in the room
     plays speech (the same class as the call, from another direction) and other sounds at
     random times. Only the voice tells which person called: the robot must look at the
@@ -104,8 +104,8 @@ class CallResponseEnv(HearingTaskEnv):
     still for ``look_s``): ``success`` for the caller (who wins when several are in view),
     ``wrong_person`` for another; ``too_late`` when ``response_window_s`` passes first (from
     the call's start). Looks before the call do not count, nor does a person already in view
-    when it starts until the gaze has left them: the robot must turn to the caller. Truncated (``timeout``) after
-    ``max_episode_s`` (30 s: the task's limit). ``info``: outcome, ``success``, ``people``,
+    when it starts until the gaze has left them: the robot must turn to the caller. Truncated
+    (``timeout``) after ``max_episode_s`` (30 s: the task's limit). ``info``: outcome, ``success``, ``people``,
     ``looked_at`` (``caller``, a bystander's name or None), ``bystander_bearings_deg``,
     ``person_in_view``, ``person_direction`` (head frame), ``person_bearing_deg`` (relative
     to the wheelchair's heading), ``calls``, ``target_onset_s`` (the first call's start),

@@ -697,26 +697,26 @@ class SoundEvents:
         ConfigError
             If the scene has no such emitter or the class is unknown.
         """
-        if emitter not in EMITTERS:
-            raise ConfigError(f"draw: unknown emitter {emitter!r}; valid: {', '.join(EMITTERS)}")
-        self._need_emitter(emitter, "draw")
-        if label not in sounds.SOUND_CLASSES:
-            raise ConfigError(f"draw: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
-        for pending in list(self._deferred.get(emitter, ())):  # earlier requests draw first, as when made
-            self._resolve(pending)
+        self._check_draw(emitter, label, "draw")
+        pending = self._deferred.get(emitter)
+        if pending:  # the earlier requests draw first, as when they were made
+            self._resolve(pending[-1])
         return self._draw(emitter, label)
 
     def draw_later(self, emitter: str, label: str):
         """:meth:`draw`, deferred: a zero-argument callable that gives the same signal when
         called (at once with ``prefetch``), which a scheduled sound calls when it starts
         (:meth:`acoustic_sim.world.soundscape.Soundscape.schedule_sound`). Raises as :meth:`draw`."""
-        if emitter not in EMITTERS:
-            raise ConfigError(f"draw_later: unknown emitter {emitter!r}; valid: {', '.join(EMITTERS)}")
-        self._need_emitter(emitter, "draw_later")
-        if label not in sounds.SOUND_CLASSES:
-            raise ConfigError(f"draw_later: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
+        self._check_draw(emitter, label, "draw_later")
         d = self._later(emitter, label)
         return lambda: self._resolve(d)
+
+    def _check_draw(self, emitter: str, label: str, what: str) -> None:
+        if emitter not in EMITTERS:
+            raise ConfigError(f"{what}: unknown emitter {emitter!r}; valid: {', '.join(EMITTERS)}")
+        self._need_emitter(emitter, what)
+        if label not in sounds.SOUND_CLASSES:
+            raise ConfigError(f"{what}: unknown sound class {label!r}; valid: {', '.join(sounds.SOUND_CLASSES)}")
 
     def _draw(self, emitter: str, label: str) -> np.ndarray:
         # Requested sounds are drawn when requested (a task's reset), not in a control step.

@@ -56,12 +56,12 @@ SOURCE_PREFIX = "task/"
 the sounds are a task's, whoever schedules them)."""
 
 
-
 def _checked_signal(signal, what: str) -> np.ndarray:
     x = np.asarray(signal, dtype=float)
     if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
         raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array (unit RMS), got shape {x.shape}")
     return x
+
 
 @dataclasses.dataclass
 class ScheduledSound:
