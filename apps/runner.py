@@ -330,7 +330,7 @@ def add_parsers(sub) -> None:
                    "instead of a car whose R and alarm latency are drawn per episode")
     r.add_argument("--paper-room", action="store_true",
                    help="call-response only: the paper's room (one person, found when in view, no response window) "
-                   "instead of two or three people, one calling, to be looked at within 1.5 s of the call")
+                   "instead of three people, one calling, to be looked at within 1.5 s of the call")
     r.add_argument("--action-mode", choices=("joints", "skill"), default=None,
                    help="the env's action space: joints (default; what the built-in policies act in) or skill "
                    "(the small learner's space of tasks/skills.py, for a module:Class policy written for it); "
