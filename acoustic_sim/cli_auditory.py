@@ -105,6 +105,34 @@ def add_parsers(sub) -> None:
     ep.add_argument("--quick", action="store_true", help="fewer directions and sounds, small models (under a minute once the small MelCNN is cached; for tests)")
     ep.add_argument("--seed", type=int, default=0, help="random seed")
     ep.set_defaults(func=cmd_eval_paper)
+    ea = esub.add_parser(
+        "active",
+        help="does one head turn resolve front and back? (the world-frame tracker)",
+        description="Plays white noise and each of the six classes from directions drawn from the seed (on the "
+        "horizontal plane and off it), in the lab room (1.5 m) and the car cabin (0.8 m or nearer a wall), with the "
+        "head still or turning once by 10, 15, 30 or 45 deg during the sound. Scores the pipeline's head-frame "
+        "estimate on the still head and the world-frame tracker's after each turn: the front-back confusion rate, "
+        "the mean azimuth error and the time to a front-back decision. Writes OUT/active.json, OUT/trials.json, "
+        "OUT/REPORT.md and OUT/active_confusion.png. A trial takes about 0.6 s on one core: the default "
+        "(150 directions x 7 sounds x 5 head movements x 2 rooms) about 1 h 45 min; --horizontal 30 "
+        "--off-plane 10 about 30 min.",
+    )
+    ea.add_argument("--out", type=Path, required=True, help="output folder")
+    ea.add_argument("--hrtf", default="kemar", help=f"the robot's ears (default kemar): {HRTF_HELP}")
+    ea.add_argument("--profile", default="fast", choices=("paper", "fast"),
+                    help="model size (default fast: the paper models take hours to train without a GPU)")
+    ea.add_argument("--horizontal", type=int, default=None, help="directions on the horizontal plane per room (default 100)")
+    ea.add_argument("--off-plane", type=int, default=None, help="directions off the horizontal plane per room (default 50)")
+    ea.add_argument("--room", action="append", default=None, dest="rooms", choices=("lab", "car_cabin", "anechoic"),
+                    help="a room (repeat for several; default lab and car_cabin)")
+    ea.add_argument("--sound", action="append", default=None, dest="sounds",
+                    help="a sound (repeat for several; default white_noise and the six classes)")
+    ea.add_argument("--precedence", default=None,
+                    choices=("wavefront", "ratio", "coherence", "wavefront+coherence", "none"),
+                    help="the pipeline's evidence rule (default wavefront+coherence; see AuditoryPipeline)")
+    ea.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ea.add_argument("--quick", action="store_true", help="4 + 2 directions, 2 sounds, turns of 0 and 30 deg (for tests)")
+    ea.set_defaults(func=cmd_eval_active)
     et = esub.add_parser(
         "tasks",
         help="every task with the scripted, oracle, blind, deaf and random policies",
@@ -132,13 +160,16 @@ def add_parsers(sub) -> None:
         help="copy a finished run's tables and figures into the README",
         description="Replaces the README's section between <!-- paper:begin --> and <!-- paper:end --> with "
         "the tables of RESULTS/REPORT.md (generated from its JSON files) and links to its figures, and the "
-        "section between <!-- tasks:begin --> and <!-- tasks:end --> with the table of TASKS/tasks.json, so "
+        "section between <!-- tasks:begin --> and <!-- tasks:end --> with the table of TASKS/tasks.json (and "
+        "<!-- active:begin --> ... <!-- active:end --> with ACTIVE/active.json), so "
         "the README never holds a hand-typed number. Run it after `eval paper --out results/paper` and "
         "`eval tasks --out results/tasks`.",
     )
     er.add_argument("--results", type=Path, default=Path("results/paper"), help="a finished eval paper folder (default results/paper)")
     er.add_argument("--tasks", type=Path, default=Path("results/tasks"),
                     help="a finished eval tasks folder (default results/tasks; skipped when it has no tasks.json)")
+    er.add_argument("--active", type=Path, default=Path("results/active"),
+                    help="a finished eval active folder (default results/active; skipped when it has no active.json)")
     er.add_argument("--readme", type=Path, default=Path("README.md"), help="the README to update (default README.md)")
     er.set_defaults(func=cmd_eval_readme)
 
@@ -293,6 +324,11 @@ def cmd_eval_readme(args) -> int:
         raise ConfigError(f"{args.readme}: no such file")
     changed = update_readme(args.readme, args.results, image_prefix=args.results.as_posix())
     print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.results}")
+    if (args.active / "active.json").is_file():
+        from acoustic_sim.experiments import active
+
+        changed = active.update_readme(args.readme, args.active, image_prefix=args.active.as_posix())
+        print(f"{args.readme}: {'updated from' if changed else 'already matches'} {args.active}")
     if (args.tasks / "tasks.json").is_file():
         from apps import eval_tasks as tasks
 
@@ -314,6 +350,28 @@ def cmd_eval_tasks(args) -> int:
     print(table(args.out))
     print(f"wrote {args.out / 'tasks.json'}, {args.out / 'REPORT.md'}, {args.out / 'tasks.png'} and one episodes.json "
           "per task and policy")
+    return 0
+
+
+def cmd_eval_active(args) -> int:
+    from acoustic_sim.experiments import active
+
+    kwargs = {}
+    if args.horizontal is not None:
+        kwargs["n_horizontal"] = args.horizontal
+    if args.off_plane is not None:
+        kwargs["n_off_plane"] = args.off_plane
+    if args.rooms:
+        kwargs["rooms"] = tuple(args.rooms)
+    if args.sounds:
+        kwargs["sound_names"] = tuple(args.sounds)
+    if args.precedence is not None:
+        kwargs["precedence"] = None if args.precedence == "none" else args.precedence
+    summary = active.run_active(out=args.out, hrtf=args.hrtf, profile=args.profile, seed=args.seed, quick=args.quick,
+                                **kwargs)
+    print(active.table(summary))
+    print(f"wrote {args.out / 'active.json'}, {args.out / 'trials.json'}, {args.out / 'REPORT.md'} and "
+          f"{args.out / 'active_confusion.png'}")
     return 0
 
 

@@ -8,7 +8,8 @@ One control step is one ear frame (16 ms, DESIGN.md section 1)::
     Coupling.render()        the block of eardrum pressure (2, 705 | 706) Pa
     Soundscape.end_block     sounds over (reverberation included) leave the renderer
     Microphone               digital full scale, the ADC's 24 bits
-    AuditoryPipeline         exactly one Percept for the ear frame that ends with the block
+    AuditoryPipeline         the head's pose (its world-frame tracker), then exactly one Percept
+                             for the ear frame that ends with the block
     -> StepHearing           all of it, typed and frozen
 
 :class:`HearingLoop` owns that chain and the listening warm-up before an episode; the task
@@ -168,6 +169,9 @@ class HearingLoop:
         pressure = c.render()
         self.soundscape.end_block()
         audio = self.microphone(pressure)
+        # The head's pose in the block (the renderer holds it over the block), on the
+        # pipeline's own clock, for its world-frame tracker.
+        self.pipeline.note_pose(self.pipeline.frontend.sample / self.pipeline.frontend.sample_rate, c.head_rotation)
         with self.threads:
             percepts = self.pipeline.process(audio)
         if len(percepts) != 1:
@@ -212,6 +216,8 @@ class HearingLoop:
         if counted:
             self.ambient_power = np.maximum(ambient / counted, microphone_floor())
         self.soundscape.forget()
+        if getattr(self.pipeline, "tracker", None) is not None:
+            self.pipeline.tracker.forget()  # what the warm-up heard is the room, not the episode's sounds
         return last
 
     def _set_noise_reference(self) -> None:

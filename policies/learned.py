@@ -3,7 +3,8 @@
 ``PATH`` is the training's output folder (or its ``policy.zip``). Beside the zip lies
 ``policy.json``, the metadata: the task, the action and reward modes, the auditory profile
 and its checkpoints, the observation layout. A policy is refused, with the reason, in an env
-of another task, action mode or observation layout: its network would read the wrong numbers.
+of another task or action mode, or whose observation lacks a key of the training's or gives it
+another shape: its network would read the wrong numbers.
 """
 
 from __future__ import annotations
@@ -69,8 +70,9 @@ class LearnedPolicy:
     Parameters
     ----------
     env : gymnasium.Env
-        The task env, wrapped or not; its task, action mode and observation layout must be the
-        training's.
+        The task env, wrapped or not; its task and action mode must be the training's, and its
+        observation must hold the training's keys with their shapes (keys added since, such as
+        the tracker's, are left out of the network's input).
     path : str or pathlib.Path
         The training's output folder or its ``policy.zip``.
 
@@ -91,9 +93,12 @@ class LearnedPolicy:
             raise ConfigError(f"learned policy {str(path)!r} acts in the {m['action_mode']} action mode; this env is in "
                               f"{u.action_mode} (make it with action_mode={m['action_mode']!r})")
         layout = observation_layout(u.observation_space)
-        if layout != m["observation"]:
+        trained = {k: list(v) for k, v in m["observation"].items()}
+        if any(layout.get(k) != v for k, v in trained.items()):
             raise ConfigError(f"learned policy {str(path)!r} was trained on observations {m['observation']}, this env gives "
                               f"{layout}")
+        # Keys the env gained since the training (e.g. the tracker's) are not the network's input.
+        self.keys = tuple(trained)
         if m["algo"] != "ppo":
             raise ConfigError(f"learned policy {str(path)!r}: unknown algorithm {m['algo']!r}")
         from stable_baselines3 import PPO
@@ -104,7 +109,7 @@ class LearnedPolicy:
         """Nothing to reset: the network has no memory."""
 
     def act(self, obs, info) -> np.ndarray:
-        action, _ = self.model.predict(obs, deterministic=True)
+        action, _ = self.model.predict({k: obs[k] for k in self.keys}, deterministic=True)
         return np.asarray(action, np.float32)
 
 

@@ -67,14 +67,16 @@ def make_pipeline(profile: str = "paper", hrtf: str = "kemar", coverage: float =
     are the pipeline's attribution rules (a frame counts for a class when it covers that
     fraction of its bins, and when that fraction of its onset's energy lies in them),
     ``onset_windows`` the windows it takes at a rising onset, ``fusion`` how it fuses a
-    frame's bins (``"product"`` or ``"sum"``)."""
+    frame's bins (``"product"`` or ``"sum"``). It tracks the sounds in the world frame
+    (:mod:`~acoustic_sim.auditory.tracker`; the hearing loop gives it the head's pose)."""
     from acoustic_sim.auditory.pipeline import AuditoryPipeline
 
     if profile not in PROFILES:
         raise ConfigError(f"unknown pipeline profile {profile!r}; valid: {', '.join(PROFILES)}")
     ears, grid, bank, cnn = load_models(hrtf, profile)
     return AuditoryPipeline(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=microphone_noise_power(),
-                            coverage=coverage, specificity=specificity, onset_windows=onset_windows, fusion=fusion)
+                            coverage=coverage, specificity=specificity, onset_windows=onset_windows, fusion=fusion,
+                            tracker=True)
 
 
 class TorchThreads:

@@ -204,6 +204,9 @@ class HearingTaskEnv(gym.Env):
             "class_prob": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
             "class_dir": spaces.Box(-1.0, 1.0, shape=(3 * len(CLASSES),), dtype=np.float32),
             "class_conf": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
+            "tracked_dir": spaces.Box(-1.0, 1.0, shape=(3 * len(CLASSES),), dtype=np.float32),
+            "tracked_conf": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
+            "tracked_decided": spaces.Box(0.0, 1.0, shape=(len(CLASSES),), dtype=np.float32),
             "existence": spaces.Box(0.0, float(len(self.pipeline.ssdenet.bins)), shape=(self._n_directions,), dtype=np.float32),
         }
         obs.update(self._task_spaces())
@@ -453,6 +456,9 @@ class HearingTaskEnv(gym.Env):
         dirs = np.zeros((len(CLASSES), 3), np.float32)
         conf = np.zeros(len(CLASSES), np.float32)
         existence = np.zeros(self._n_directions, np.float32)
+        tdir = np.zeros((len(CLASSES), 3), np.float32)
+        tconf = np.zeros(len(CLASSES), np.float32)
+        tdec = np.zeros(len(CLASSES), np.float32)
         p = self.last_percept
         if p is not None:
             probs[:] = [p.probability(c) for c in CLASSES]
@@ -465,12 +471,19 @@ class HearingTaskEnv(gym.Env):
                     best, best_p = d, probs[i]
             if best is not None:
                 existence[:] = np.clip(best.existence, 0.0, self.observation_space["existence"].high[0])
+            for name, t in p.tracked.items():
+                if name in CLASSES:
+                    i = CLASSES.index(name)
+                    tdir[i], tconf[i], tdec[i] = t.head_vector, t.confidence, float(t.decided)
         obs = {
             "joint_pos": np.clip(pos, -np.pi, np.pi),
             "joint_vel": np.clip(vel, -50.0, 50.0),
             "class_prob": np.clip(probs, 0.0, 1.0),
             "class_dir": np.clip(dirs, -1.0, 1.0).reshape(-1),
             "class_conf": np.clip(conf, 0.0, 1.0),
+            "tracked_dir": np.clip(tdir, -1.0, 1.0).reshape(-1),
+            "tracked_conf": np.clip(tconf, 0.0, 1.0),
+            "tracked_decided": tdec,
             "existence": existence,
         }
         obs.update(self._task_obs())

@@ -55,6 +55,11 @@ PERCEPT_ROWS: tuple[tuple[str, str, str], ...] = (
     ("class_dir", "(18,)", ("per class, the estimated direction (unit vector, head frame: x forward, y left, "
                             "z up), class k in entries 3k..3k+2; zeros when the class has no estimate")),
     ("class_conf", "(6,)", "per class, the estimate's confidence 0..1 (0: no estimate)"),
+    ("tracked_dir", "(18,)", ("per class, the world-frame tracker's direction seen from the head now (unit "
+                              "vector, head frame), from every frame heard this episode; zeros before any")),
+    ("tracked_conf", "(6,)", "per class, the tracker's posterior mass near its peak 0..1 (0: nothing heard yet)"),
+    ("tracked_decided", "(6,)", ("per class, 1 when the tracker has decided front from back (a head turn "
+                                 "moved the mirror image away), else 0")),
     ("existence", "(D,)", ("SSDENet existence map of the most likely class that has an estimate, over the D "
                            "(327) grid directions; zeros if none")),
     ("audio", "(2, 706)", "optional (``audio_obs``): the digital ear block, full scale"),

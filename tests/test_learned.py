@@ -78,10 +78,17 @@ def test_a_mismatched_policy_is_refused(trained, tmp_path):
     with pytest.raises(ConfigError, match="action_mode='skill', not 'joints'"):
         runner.run_episodes("call-response", f"learned:{out}", 1, 0, tmp_path / "r", profile="fast", progress=False,
                             env_kwargs={"action_mode": "joints"})
-    env = runner.make_env("call-response", profile="fast", action_mode="skill", audio_obs=True)
+    # A policy whose observation holds a key this env lacks (or shapes it otherwise) is refused.
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "policy.zip").write_bytes((out / "policy.zip").read_bytes())
+    meta = json.loads((out / "policy.json").read_text())
+    meta["observation"]["audio"] = [2, 706]
+    (other / "policy.json").write_text(json.dumps(meta))
+    env = runner.make_env("call-response", profile="fast", action_mode="skill")
     try:
         with pytest.raises(ConfigError, match="trained on observations"):
-            LearnedPolicy(env, out)
+            LearnedPolicy(env, other)
     finally:
         env.close()
     joints = runner.make_env("call-response", profile="fast")
@@ -97,6 +104,23 @@ def test_a_mismatched_policy_is_refused(trained, tmp_path):
     (tmp_path / "broken" / "policy.json").write_text("{not json")
     with pytest.raises(ConfigError, match="cannot read"):
         make_policy(f"learned:{tmp_path}/broken", joints)
+
+
+def test_keys_added_to_the_observation_since_training_are_left_out(trained):
+    """An env that gives more than the network read (the audio here) runs the policy on the
+    training's keys: the same actions as in an env without them."""
+    out, _, _ = trained
+    plain = runner.make_env("call-response", profile="fast", action_mode="skill")
+    more = runner.make_env("call-response", profile="fast", action_mode="skill", audio_obs=True)
+    try:
+        a, b = LearnedPolicy(plain, out), LearnedPolicy(more, out)
+        obs_a, info_a = plain.reset(seed=5)
+        obs_b, info_b = more.reset(seed=5)
+        assert "audio" in obs_b and "audio" not in a.keys
+        np.testing.assert_array_equal(a.act(obs_a, info_a), b.act(obs_b, info_b))
+    finally:
+        plain.close()
+        more.close()
 
 
 def test_bad_training_arguments_are_config_errors(tmp_path):

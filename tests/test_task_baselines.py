@@ -10,7 +10,8 @@ from policies import POLICIES, make_policy, policy_class
 from policies.deaf import POLICY_CLASSES as DEAF, SEARCH_PARAMETERS
 from tasks.reverse_alarm import ReverseAlarmEnv
 
-PERCEPT_KEYS = ("class_prob", "class_conf", "class_dir", "audio", "spectra")
+PERCEPT_KEYS = ("class_prob", "class_conf", "class_dir", "tracked_dir", "tracked_conf", "tracked_decided", "audio",
+                "spectra")
 
 
 class NoPercept(dict):

@@ -90,6 +90,10 @@ class Percept:
         for display.
     volume : numpy.ndarray
         float64 (2,): the ear volumes V_l, V_r used for the fusion.
+    tracked : dict of str to TrackedDirection
+        With a tracker (``AuditoryPipeline(tracker=)``): the world-frame direction of every
+        sound heard so far this episode (:mod:`~acoustic_sim.auditory.tracker`), its view
+        from the head's latest pose and the front-back decision; empty without one.
     """
 
     frame: int
@@ -100,6 +104,7 @@ class Percept:
     directions: dict = field(default_factory=dict)
     mel: np.ndarray | None = None
     volume: np.ndarray | None = None
+    tracked: dict = field(default_factory=dict)
 
     def probability(self, name: str) -> float:
         return float(self.probabilities[self.classes.index(name)])
@@ -111,4 +116,5 @@ class Percept:
             "probabilities": {c: round(float(p), 4) for c, p in zip(self.classes, self.probabilities)},
             "detected": list(self.detected),
             "directions": {c: d.to_json() for c, d in self.directions.items()},
+            **({"tracked": {c: d.to_json() for c, d in self.tracked.items()}} if self.tracked else {}),
         }

@@ -92,7 +92,7 @@ from acoustic_sim.acoustics.hrtf import HRTF
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.features import MEL_FRAMES, MelHistory, ear_volume, ild_ipd, log_mel_patches
-from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, analyze, bin_frequencies
+from acoustic_sim.auditory.frontend import N_BINS, N_FFT, EarFrontEnd, analyze, bin_frequencies
 from acoustic_sim.auditory.melcnn import MelCNN, fuse_unchecked
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.auditory.percept import map_estimate as _estimate
@@ -131,7 +131,14 @@ ADDED_MS = 10.0
 difference is the energy the onset added
 (:meth:`~acoustic_sim.auditory.precedence.FirstWavefront.take_added`)."""
 
-PRECEDENCE = ("wavefront", "ratio", None)
+COHERENCE = 0.97
+"""The ``"coherence"`` precedence gate: a bin counts when the interaural coherence of its last
+:data:`COHERENCE_FRAMES` frames is at least this."""
+
+COHERENCE_FRAMES = 4
+"""Frames (64 ms) over which the ``"coherence"`` gate averages the interaural cross-spectrum."""
+
+PRECEDENCE = ("wavefront", "ratio", "coherence", "wavefront+coherence", None)
 """Precedence modes of the streaming pipeline (module docstring); the first is the default."""
 
 
@@ -176,8 +183,15 @@ class AuditoryPipeline:
         ``"wavefront"`` (default: features from the first wavefront of onsets),
         ``"ratio"`` (bins whose power rose ``onset_ratio`` times since the last frame) or
         None (the paper's rule alone); see the module docstring.
+        ``"coherence"`` (bins whose interaural coherence over the last
+        :data:`COHERENCE_FRAMES` frames is at least ``coherence``: the direct sound's cues,
+        where the room's diffuse field has decorrelated the ears; for sounds without onsets)
+        or ``"wavefront+coherence"`` (the first wavefront at onsets, the coherent bins of the
+        frames between them).
     onset_ratio : float
         The ``"ratio"`` mode's factor (default :data:`ONSET_RATIO`), >= 1.
+    coherence : float
+        The ``"coherence"`` mode's threshold, 0..1 (default :data:`COHERENCE`).
     coverage : float
         A frame counts for a class's direction only when its valid bins cover at least this
         fraction of the class's bank bins, 0..1 (default 0: every frame; the cabin tasks use
@@ -199,6 +213,15 @@ class AuditoryPipeline:
     fusion : str
         How the existence maps of a frame's bins are fused: ``"product"`` (default) or
         ``"sum"`` (the paper's equation); :data:`~acoustic_sim.auditory.ssdenet.FUSIONS`.
+    tracker : DirectionTracker or bool, optional
+        Track the sounds' directions in the world frame
+        (:class:`~acoustic_sim.auditory.tracker.DirectionTracker`; ``True`` for one with its
+        defaults): every frame's evidence for a localized sound is handed to it once, with
+        the frame's time, and the percepts carry its estimates (``Percept.tracked``). The
+        head's pose must then be given with :meth:`note_pose`.
+
+    :meth:`attend` localizes a sound in every frame, detected or not (an experiment that
+    knows what plays; white noise, which is no class, with all the bank's bins).
 
     Use :meth:`load` to get one with trained (cached) models.
     """
@@ -207,7 +230,8 @@ class AuditoryPipeline:
                  threshold: float = 0.5, factor: float = VALIDITY_FACTOR,
                  direction_frames: int | None = None, precedence: str | None = "wavefront",
                  onset_ratio: float = ONSET_RATIO, coverage: float = 0.0, specificity: float = 0.0,
-                 leakage: float = LEAKAGE, onset_windows: int = 1, fusion: str = DEFAULT_FUSION) -> None:
+                 leakage: float = LEAKAGE, onset_windows: int = 1, fusion: str = DEFAULT_FUSION,
+                 coherence: float = COHERENCE, tracker=None) -> None:
         if ssdenet.hrtf_ident != hrtf.ident:
             raise ConfigError(f"the SSDENet bank was trained for HRTF {ssdenet.hrtf_name!r} ({ssdenet.hrtf_ident}), "
                               f"not for {hrtf.name!r} ({hrtf.ident})")
@@ -222,6 +246,8 @@ class AuditoryPipeline:
         direction_frames = DIRECTION_FRAMES if direction_frames is None else direction_frames
         if precedence not in PRECEDENCE:
             raise ConfigError(f"precedence must be one of {PRECEDENCE}, got {precedence!r}")
+        if not (coherence is not None and np.isfinite(coherence) and 0.0 <= coherence <= 1.0):
+            raise ConfigError(f"coherence must be in [0, 1], got {coherence}")
         if not (onset_ratio is not None and np.isfinite(onset_ratio) and onset_ratio >= 1.0):
             raise ConfigError(f"onset_ratio must be >= 1, got {onset_ratio}")
         if not (coverage is not None and np.isfinite(coverage) and 0.0 <= coverage <= 1.0):
@@ -238,6 +264,8 @@ class AuditoryPipeline:
         self.ssdenet = ssdenet
         self.melcnn = melcnn
         self.classes = tuple(melcnn.classes)
+        self._rows = list(self.classes)  # the localizable sounds: the classes, then attended others
+        self._attended: list[int] = []  # rows localized in every frame
         self.threshold = float(threshold)
         self.factor = float(factor)
         self.leakage = float(leakage)
@@ -278,7 +306,7 @@ class AuditoryPipeline:
         self.precedence = precedence
         self.onset_ratio = float(onset_ratio)
         self.wavefront = None
-        if precedence == "wavefront":
+        if precedence in ("wavefront", "wavefront+coherence"):
             # The attribution rule judges an onset by the energy it added (ADDED_MS segments).
             self.wavefront = FirstWavefront(added_ms=ADDED_MS if self.specificity > 0.0 else None,
                                             windows=int(onset_windows))
@@ -286,13 +314,26 @@ class AuditoryPipeline:
             self._short_ok = bin_frequencies()[ssdenet.bins] >= self.wavefront.min_hz  # (n_bank,)
         self._last_power: np.ndarray | None = None  # (n_bank,) both ears, the previous frame
         self._awaiting: dict = {}  # onset sample -> its evidence item, until its added energy is known
+        self.coherence = float(coherence)
+        self._cross: deque = deque(maxlen=COHERENCE_FRAMES)  # per recent frame (3, n_bank): S_lr, P_l, P_r
+        if tracker is True:
+            from acoustic_sim.auditory.tracker import DirectionTracker
+
+            tracker = DirectionTracker(grid)
+        self.tracker = tracker or None
+        if self.tracker is not None:
+            if self.tracker.grid.ident != grid.ident:
+                raise ConfigError(f"the tracker's grid {self.tracker.grid.ident} is not the pipeline's {grid.ident}")
+            for name in self._rows:
+                self.tracker.track(name)
 
     @classmethod
     def load(cls, hrtf="kemar", profile: str = "paper", *, melcnn_profile: str | None = None, noise_power=None,
              threshold: float = 0.5, direction_frames: int | None = None,
              precedence: str | None = "wavefront", onset_ratio: float = ONSET_RATIO, coverage: float = 0.0,
              specificity: float = 0.0, leakage: float = LEAKAGE, onset_windows: int = 1,
-             fusion: str = DEFAULT_FUSION, progress: bool = True) -> AuditoryPipeline:
+             fusion: str = DEFAULT_FUSION, coherence: float = COHERENCE, tracker=None,
+             progress: bool = True) -> AuditoryPipeline:
         """A pipeline with the cached models of ``profile`` (trained first where missing).
 
         Parameters
@@ -314,7 +355,7 @@ class AuditoryPipeline:
         return cls(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=noise_power, threshold=threshold,
                    direction_frames=direction_frames, precedence=precedence, onset_ratio=onset_ratio,
                    coverage=coverage, specificity=specificity, leakage=leakage, onset_windows=onset_windows,
-                   fusion=fusion)
+                   fusion=fusion, coherence=coherence, tracker=tracker)
 
     # -- state --------------------------------------------------------------------------------
     def set_noise_power(self, noise_power) -> None:
@@ -337,8 +378,51 @@ class AuditoryPipeline:
         self.evidence.clear()
         self._last_power = None
         self._awaiting.clear()
+        self._cross.clear()
         if self.wavefront is not None:
             self.wavefront.reset()
+        if self.tracker is not None:
+            self.tracker.reset()
+
+    def note_pose(self, time_s: float, rotation) -> None:
+        """The head's pose from ``time_s`` on (s, the sample clock; ``rotation`` (3, 3) head to
+        world), for the tracker; ignored without one."""
+        if self.tracker is not None:
+            self.tracker.note_pose(time_s, rotation)
+
+    def clear_attention(self) -> None:
+        """Localize only the detected classes again (:meth:`attend`)."""
+        self._attended.clear()
+
+    def attend(self, name: str, bins=None) -> None:
+        """Localize ``name`` in every frame, detected or not: a class, or another sound with
+        its characteristic bins (indices into the 1025; None: all the bank's bins)."""
+        if self.evidence:
+            raise ConfigError("attend to a sound before the first block, or after reset()")
+        if name in self._rows:
+            if bins is not None and name in self.classes:
+                raise ConfigError(f"{name!r} is a class: its characteristic bins are the MelCNN's")
+            row = self._rows.index(name)
+        else:
+            if not isinstance(name, str) or not name:
+                raise ConfigError(f"an attended sound needs a name, got {name!r}")
+            own = np.zeros(N_BINS, bool)
+            try:
+                own[np.arange(N_BINS) if bins is None else np.asarray(bins, np.int64)] = True
+            except (IndexError, ValueError, TypeError):
+                raise ConfigError(f"bins must be indices 0..{N_BINS - 1}, got {bins!r}") from None
+            mask = own[self.ssdenet.bins]
+            if not mask.any():
+                raise ConfigError(f"none of the bins given for {name!r} is one of the bank's")
+            self._rows.append(name)
+            self._class_masks = np.vstack([self._class_masks, mask[None]])
+            self._class_sizes = self._class_masks.sum(axis=1)
+            self._class_band = np.vstack([self._class_band, own[self._band][None].astype(float)])
+            row = len(self._rows) - 1
+            if self.tracker is not None:
+                self.tracker.track(name)
+        if row not in self._attended:
+            self._attended.append(row)
 
     # -- streaming ----------------------------------------------------------------------------
     def process(self, block) -> list[Percept]:
@@ -354,10 +438,15 @@ class AuditoryPipeline:
         self._volumes[-1] = ear_volume(x)
         self._n_volumes = min(self._n_volumes + 1, MEL_FRAMES)
         bins = self.ssdenet.bins
-        if self.precedence == "wavefront":
+        coherent = self._coherent(x[:, bins]) if self.precedence in ("coherence", "wavefront+coherence") else None
+        taken = None
+        if self.wavefront is not None:
             taken = self.wavefront.take_onset(int(frame_end_sample(k)))
             onset = None if taken is None else taken[1]
-            if onset is None:  # no onset, no direction evidence: the validity test is not needed
+            if onset is None and coherent is not None:  # no onset: the frame's cues where the ears agree
+                valid = self._valid(x)[bins] & coherent
+                cues = x[:, bins]
+            elif onset is None:  # no onset, no direction evidence: the validity test is not needed
                 valid = np.zeros(bins.size, bool)
                 cues = x[:, bins]
             else:
@@ -369,6 +458,8 @@ class AuditoryPipeline:
         else:
             valid = self._valid(x)[bins]
             cues = x[:, bins]
+            if coherent is not None:
+                valid &= coherent
             if self.precedence == "ratio":
                 power = (cues.real**2 + cues.imag**2).sum(axis=0)
                 last = self._last_power
@@ -379,17 +470,18 @@ class AuditoryPipeline:
             sel = cues[..., valid]
             features = ild_ipd(sel[..., 0, :], sel[..., 1, :])  # (n_valid, 5), or (k, n_valid, 5) for k windows
             if self.specificity > 0.0:
-                if self.precedence == "wavefront":
+                if taken is not None:
                     # Judged once the energy the onset added is known (this frame or the next);
                     # until then the frame counts for no class.
-                    shares = np.zeros(len(self.classes))
+                    shares = np.zeros(len(self._rows))
                 else:
                     shares = self._shares((x.real**2 + x.imag**2).sum(axis=0))
         else:
             features = np.empty((0, 5), np.float32)
-        item = [valid, features, None, np.zeros_like(valid), shares]
+        # The frame's window centre: the time its cues describe (the tracker's pose).
+        item = [valid, features, None, np.zeros_like(valid), shares, t - N_FFT / 2 / SAMPLE_RATE, set()]
         self.evidence.append(item)
-        if self.specificity > 0.0 and self.precedence == "wavefront":
+        if self.specificity > 0.0 and self.wavefront is not None:
             if taken is not None and valid.any():
                 self._awaiting[taken[0]] = item
             for s, added in self.wavefront.take_added(int(frame_end_sample(k))):
@@ -402,11 +494,29 @@ class AuditoryPipeline:
         probs = fuse_unchecked(p_ears[0], p_ears[1], volume[0], volume[1]).astype(np.float32)
         order = np.argsort(-probs, kind="stable")
         detected = tuple(self.classes[i] for i in order if probs[i] >= self.threshold)
-        directions = {}
-        if detected:
-            directions = self._directions([self.classes.index(c) for c in detected])
+        rows = [self.classes.index(c) for c in detected]
+        rows += [r for r in self._attended if r not in rows]
+        directions = self._directions(rows) if rows else {}
+        tracked = {}
+        if self.tracker is not None:
+            for name in self._rows:
+                if self.tracker.frames(name):
+                    tracked[name] = self.tracker.estimate(name)
         return Percept(frame=k, time_s=t, classes=self.classes, probabilities=probs, detected=detected,
-                       directions=directions, mel=patch[:, -1, :].copy(), volume=volume)
+                       directions=directions, mel=patch[:, -1, :].copy(), volume=volume, tracked=tracked)
+
+    def _coherent(self, cues: np.ndarray) -> np.ndarray:
+        """Which bank bins (n_bank,) had an interaural coherence of at least ``coherence``
+        over the last :data:`COHERENCE_FRAMES` frames (this one, ``cues`` (2, n_bank), the
+        last): ``|sum X_l X_r*| / sqrt(sum |X_l|^2 sum |X_r|^2)``; none until that many frames."""
+        xl, xr = cues[0], cues[1]
+        self._cross.append(np.stack([xl * np.conj(xr), np.abs(xl) ** 2, np.abs(xr) ** 2]))
+        if len(self._cross) < COHERENCE_FRAMES:
+            return np.zeros(xl.size, bool)
+        s_lr, p_l, p_r = np.sum(self._cross, axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            coh = np.abs(s_lr) / np.sqrt(p_l.real * p_r.real)
+        return np.nan_to_num(coh) >= self.coherence
 
     def _valid(self, x: np.ndarray) -> np.ndarray:
         """Valid bins (..., 1025) of spectra (..., 2, 1025): the bank's bins that pass the noise and leakage tests."""
@@ -433,7 +543,7 @@ class AuditoryPipeline:
         total = np.zeros((len(class_indices), n_dirs), np.float64)
         counts = np.zeros(len(class_indices), np.int64)
         for item in self.evidence:
-            valid, features, maps, have, shares = item
+            valid, features, maps, have, shares, centre_s, delivered = item
             used = valid & union
             if not used.any():
                 continue
@@ -454,10 +564,17 @@ class AuditoryPipeline:
             if shares is not None:
                 # ... and only when the onset's energy lies enough in the class's bins.
                 sel = sel & (shares[class_indices] >= self.specificity)[:, None]
-            total += fuse(maps[used], sel, self.fusion)
+            fused = fuse(maps[used], sel, self.fusion)
+            total += fused
             counts += sel.sum(axis=1)
+            if self.tracker is not None:
+                # Each frame's evidence reaches the tracker once per sound, when it first counts.
+                for i, c in enumerate(class_indices):
+                    if c not in delivered and sel[i].any():
+                        delivered.add(c)
+                        self.tracker.add(self._rows[c], centre_s, fused[i])
         return {
-            self.classes[c]: _estimate(total[i].astype(np.float32), self.grid, int(counts[i]), "ssdenet")
+            self._rows[c]: _estimate(total[i].astype(np.float32), self.grid, int(counts[i]), "ssdenet")
             for i, c in enumerate(class_indices) if counts[i]
         }
 
