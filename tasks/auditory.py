@@ -61,13 +61,13 @@ def microphone_noise_power() -> np.ndarray:
 
 
 def make_pipeline(profile: str = "paper", hrtf: str = "kemar", coverage: float = 0.0, specificity: float = 0.0,
-                  onset_windows: int = 1, fusion: str = "product"):
+                  onset_windows: int = 1, fusion: str = "product", precedence: str | None = "wavefront"):
     """A fresh :class:`~acoustic_sim.auditory.pipeline.AuditoryPipeline` (its own streaming
     state) over the process's shared models of ``profile``; ``coverage`` and ``specificity``
     are the pipeline's attribution rules (a frame counts for a class when it covers that
     fraction of its bins, and when that fraction of its onset's energy lies in them),
     ``onset_windows`` the windows it takes at a rising onset, ``fusion`` how it fuses a
-    frame's bins (``"product"`` or ``"sum"``). It tracks the sounds in the world frame
+    frame's bins (``"product"`` or ``"sum"``), ``precedence`` its evidence rule. It tracks the sounds in the world frame
     (:mod:`~acoustic_sim.auditory.tracker`; the hearing loop gives it the head's pose)."""
     from acoustic_sim.auditory.pipeline import AuditoryPipeline
 
@@ -76,7 +76,7 @@ def make_pipeline(profile: str = "paper", hrtf: str = "kemar", coverage: float =
     ears, grid, bank, cnn = load_models(hrtf, profile)
     return AuditoryPipeline(hrtf=ears, grid=grid, ssdenet=bank, melcnn=cnn, noise_power=microphone_noise_power(),
                             coverage=coverage, specificity=specificity, onset_windows=onset_windows, fusion=fusion,
-                            tracker=True)
+                            precedence=precedence, tracker=True)
 
 
 class TorchThreads:

@@ -133,6 +133,8 @@ class HearingTaskEnv(gym.Env):
     """The pipeline's second attribution rule (``AuditoryPipeline(specificity=)``): 0, off."""
     onset_windows = 1
     """Windows the pipeline takes at a rising onset (``AuditoryPipeline(onset_windows=)``): 1."""
+    precedence = "wavefront"
+    """The pipeline's evidence rule (``AuditoryPipeline(precedence=)``): the first wavefront at onsets."""
     fusion = "product"
     """How the pipeline fuses a frame's bins (``AuditoryPipeline(fusion=)``,
     :data:`acoustic_sim.auditory.ssdenet.FUSIONS`): ``"product"``, the default, or the
@@ -193,7 +195,8 @@ class HearingTaskEnv(gym.Env):
         self.layout = action_layout(self.scene_name)
         self.action_mode, self.reward_mode = action_mode, reward_mode
         self.skill = self._make_skill() if action_mode == "skill" else None
-        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows, self.fusion)
+        self.pipeline = make_pipeline(profile, hrtf, self.coverage, self.specificity, self.onset_windows, self.fusion,
+                                      self.precedence)
         self.ears = load_hrtf(hrtf)
         self._n_directions = len(self.pipeline.grid)
         self.action_space = (self.skill.space if self.skill is not None

@@ -120,3 +120,13 @@ def test_eval_active_quick_writes_every_file(tmp_path, model_cache):
     active.run_active(out=again, quick=True, rooms=("anechoic",), progress=False)
     first = [t for t in trials if t["room"] == "anechoic"]
     assert json.loads((again / "trials.json").read_text()) == first  # same seed, same trials
+
+
+def test_the_readme_section_is_the_committed_run():
+    """The README's active-hearing table is what `eval readme` makes of results/active."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "README.md").read_text()
+    section = text[text.index(active.BEGIN): text.index(active.END) + len(active.END)]
+    assert section == active.readme_section(root / "results" / "active", image_prefix="results/active")

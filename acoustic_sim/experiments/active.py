@@ -403,8 +403,14 @@ def readme_section(results_dir, image_prefix: str = "results/active") -> str:
 
     summary = json.loads((Path(results_dir) / "active.json").read_text())
     d = summary["directions"]
+    flags = "".join([
+        f" --horizontal {d['horizontal']}" if d["horizontal"] != N_HORIZONTAL else "",
+        f" --off-plane {d['off_plane']}" if d["off_plane"] != N_OFF_PLANE else "",
+        f" --seed {summary['seed']}" if summary["seed"] else "",
+        " --quick" if summary["quick"] else "",
+    ])
     return (
-        f"{BEGIN}\nMade by `acoustic-sim eval active --out {image_prefix}` (HRTF {summary['hrtf']}, {summary['profile']} models, "
+        f"{BEGIN}\nMade by `acoustic-sim eval active --out {image_prefix}{flags}` (HRTF {summary['hrtf']}, {summary['profile']} models, "
         f"{d['horizontal']} + {d['off_plane']} directions per room, {len(summary['sounds'])} sounds, evidence rule "
         f"`{summary['precedence']}`, seed {summary['seed']}; {summary['wall_s']} s).\n\n"
         + table(summary)
