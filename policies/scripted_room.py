@@ -86,14 +86,25 @@ class ScriptedCallResponse(TurnPolicy):
             self._vote(fixed_azimuth(obs, d, mirror=True), w * (1.0 - self.direct_weight))
             self.frames += 1
         if self.frames >= self.min_frames:
-            desired = self._desired()
-            if self.target is None or abs(wrap_rad(desired - self.target)) >= math.radians(self.move_deg):
-                self.target, self.settled_steps = desired, 0
+            self._aim(self._desired())
+        return self._look_and_act(obs)
+
+    def _aim(self, desired: float) -> None:
+        """Gaze at ``desired`` (rad, fixed frame) unless the gaze is within ``move_deg`` of it."""
+        if self.target is None or abs(wrap_rad(desired - self.target)) >= math.radians(self.move_deg):
+            self.target, self.settled_steps = desired, 0
+
+    def _after_strike(self) -> float | None:
+        """Where to look once the target has been struck out: the vote map's next peak."""
+        return self._peak() if float((self.votes * self.struck).max()) > 0 else None
+
+    def _look_and_act(self, obs) -> np.ndarray:
+        """Strike out a direction looked at for ``look_s`` with nobody there; the gaze's action."""
         if self.gaze_settled(obs):
             self.settled_steps += 1
             if self.settled_steps * CONTROL_DT >= self.look_s:  # looked: nobody there
                 self._strike(self.target)
-                self.target, self.settled_steps = (self._peak() if float((self.votes * self.struck).max()) > 0 else None), 0
+                self.target, self.settled_steps = self._after_strike(), 0
         action = self.gaze_action(obs)
         self.steps += 1
         return action
@@ -120,17 +131,11 @@ class TrackedCallResponse(ScriptedCallResponse):
             k = int(np.argmin(np.abs(np.angle(np.exp(1j * (_CENTRES - az))))))
             if self.struck[k] < 0.5:
                 az = mirror
-            desired = az if obs["tracked_decided"][i] > 0.5 else wrap_rad(az + wrap_rad(mirror - az) / 2.0)
-            if self.target is None or abs(wrap_rad(desired - self.target)) >= math.radians(self.move_deg):
-                self.target, self.settled_steps = desired, 0
-        if self.gaze_settled(obs):
-            self.settled_steps += 1
-            if self.settled_steps * CONTROL_DT >= self.look_s:  # looked: nobody there
-                self._strike(self.target)
-                self.target, self.settled_steps = None, 0
-        action = self.gaze_action(obs)
-        self.steps += 1
-        return action
+            self._aim(az if obs["tracked_decided"][i] > 0.5 else wrap_rad(az + wrap_rad(mirror - az) / 2.0))
+        return self._look_and_act(obs)
+
+    def _after_strike(self) -> float | None:
+        return None  # the next frame's track sets the target
 
 
 __all__ = ["ScriptedCallResponse", "TrackedCallResponse"]

@@ -89,11 +89,19 @@ def test_evidence_rules_and_their_arguments(model_cache):
     assert counts["coherence"] > 0 and counts["wavefront+coherence"] == counts["coherence"]
 
 
+def test_pairs_are_apart_and_the_scene_holds_both():
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        a, b = active.draw_pair(rng)
+        assert float(np.degrees(np.arccos(np.clip(a @ b, -1, 1)))) >= active.PAIR_MIN_SEPARATION_DEG - 1e-9
+        assert abs(a[2]) < 1e-12 and abs(b[2]) < 1e-12
+
+
 def test_bad_experiment_arguments_are_refused_before_any_work(tmp_path):
     for kwargs, match in (({"rooms": ("moon",)}, "unknown room"), ({"turns": (10.0,)}, "turns"),
                           ({"sound_names": ("kazoo",)}, "unknown sound"), ({"precedence": "echo"}, "precedence"),
                           ({"n_horizontal": -1}, "n_horizontal"), ({"n_horizontal": 0, "n_off_plane": 0}, "no directions"),
-                          ({"seed": -1}, "seed")):
+                          ({"seed": -1}, "seed"), ({"pairs": -1}, "pairs")):
         with pytest.raises(ConfigError, match=match):
             active.run_active(out=tmp_path / "x", progress=False, **kwargs)
     assert not (tmp_path / "x").exists()
@@ -102,13 +110,18 @@ def test_bad_experiment_arguments_are_refused_before_any_work(tmp_path):
 def test_eval_active_quick_writes_every_file(tmp_path, model_cache):
     out = tmp_path / "active"
     assert cli.main(["eval", "active", "--out", str(out), "--quick", "--room", "anechoic", "--room", "lab"]) == 0
-    for name in ("active.json", "trials.json", "REPORT.md", "active_confusion.png"):
+    for name in ("active.json", "trials.json", "pairs.json", "REPORT.md", "active_confusion.png"):
         assert (out / name).is_file(), name
     summary = json.loads((out / "active.json").read_text())
     assert set(summary["rooms"]) == {"anechoic", "lab"}
     assert set(summary["rooms"]["lab"]) == {"static", "tracked_0", "tracked_30"}
     trials = json.loads((out / "trials.json").read_text())
     assert len(trials) == 2 * 6 * 2 * 2  # rooms x directions x sounds x turns
+    pairs = json.loads((out / "pairs.json").read_text())
+    assert len(pairs) == len(active.PAIR_ROOMS) * 2 * 2  # rooms x scenes x (still, turning)
+    assert set(summary["pairs"]["rooms"]) == set(active.PAIR_ROOMS)
+    assert all(len(p["sources"]) == 2 for p in pairs)
+    assert "Two sounds at once" in (out / "REPORT.md").read_text()
     # Anechoic, matched ears: the turn leaves no front-back confusion.
     assert summary["rooms"]["anechoic"]["tracked_30"]["front_back_confusion"] == 0.0
     readme = tmp_path / "README.md"

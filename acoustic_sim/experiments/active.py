@@ -53,7 +53,7 @@ from acoustic_sim.directions import DirectionGrid, angular_error_deg
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.experiments.localization import noise_floor
 from acoustic_sim.files import check_writable_folder
-from acoustic_sim.frames import SAMPLE_RATE, rotation_zyx, vec_to_sph
+from acoustic_sim.frames import SAMPLE_RATE, rotation_zyx, sph_to_vec, vec_to_sph
 from acoustic_sim.progress import progress_bar
 
 ROOMS = ("lab", "car_cabin")
@@ -90,6 +90,9 @@ plane (the head's x = 0 at the final pose)."""
 
 PRECEDENCE_DEFAULT = "wavefront+coherence"
 """The pipeline's evidence rule in the experiment (:data:`~acoustic_sim.auditory.pipeline.PRECEDENCE`)."""
+
+N_PAIRS = 50
+"""Two-source scenes per room (:func:`run_pair`)."""
 
 N_HORIZONTAL, N_OFF_PLANE = 100, 50
 """Directions per room: on the horizontal plane and off it (elevation 10-60 deg up or
@@ -134,15 +137,24 @@ def render_trial(hrtf: HRTF, room: str, direction: np.ndarray, sound: str, turn_
                  rng: np.random.Generator) -> tuple[np.ndarray, list]:
     """Digital ear signals (2, n) of one trial and the head's poses: a list of
     ``(time_s, rotation)`` per control block (time from the recording's start)."""
+    return render_scene(hrtf, room, [(sound, direction)], turn_deg, sign, rng)
+
+
+def render_scene(hrtf: HRTF, room: str, sources, turn_deg: float, sign: float,
+                 rng: np.random.Generator) -> tuple[np.ndarray, list]:
+    """:func:`render_trial` with several ``(sound, world direction)`` sources at once, each at
+    its own level drawn from :data:`LEVEL_DB_SPL`."""
     space = room_preset(room)
     head = np.asarray(space.listener, float)
     r = BinauralRenderer(hrtf, space, rng=rng)
-    level = float(rng.uniform(*LEVEL_DB_SPL))
     start = int(round(LEAD_S * SAMPLE_RATE))
-    dist = source_distance(space, head, direction, DISTANCE_M.get(room, 1.5))
-    x = sounds.generate(sound, rng, seconds=SOUND_S)
     r.set_head_pose(head, rotation_zyx(0.0))
-    r.add_source("source", x, head + dist * direction, level_db=level + 20 * math.log10(dist), start=start)
+    for i, (sound, direction) in enumerate(sources):
+        level = float(rng.uniform(*LEVEL_DB_SPL))
+        dist = source_distance(space, head, direction, DISTANCE_M.get(room, 1.5))
+        x = sounds.generate(sound, rng, seconds=SOUND_S)
+        r.add_source(f"source{i}", x, head + dist * np.asarray(direction, float),
+                     level_db=level + 20 * math.log10(dist), start=start)
     total = int(round((LEAD_S + SOUND_S) * SAMPLE_RATE))
     blocks, poses = [], []
     while r.sample < total:
@@ -213,6 +225,84 @@ def run_trial(pipe: AuditoryPipeline, hrtf: HRTF, room: str, direction: np.ndarr
     return rec
 
 
+PAIRS = (("reverse_alarm", "human_voice"), ("ratchet", "car_horn"), ("gearshift", "key_turning"))
+"""Sound pairs played at once (issue 33): classes of different spectra."""
+
+PAIR_ROOMS = ("anechoic", "car_cabin", "lab")
+"""Rooms of the two-source measurement."""
+
+PAIR_MIN_SEPARATION_DEG = 30.0
+"""Least azimuth difference between the two sources of a pair (deg)."""
+
+PAIR_TOLERANCE_DEG = 15.0
+"""A source of a pair counts as localized within this angle (deg)."""
+
+PAIR_TURN_DEG = 30.0
+"""The head turn of the pairs' tracked condition (deg)."""
+
+
+def draw_pair(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Two horizontal-plane directions at least :data:`PAIR_MIN_SEPARATION_DEG` apart."""
+    a = rng.uniform(-180.0, 180.0)
+    b = a + rng.uniform(PAIR_MIN_SEPARATION_DEG, 360.0 - PAIR_MIN_SEPARATION_DEG)
+    return sph_to_vec(a, 0.0), sph_to_vec(((b + 180.0) % 360.0) - 180.0, 0.0)
+
+
+def run_pair(pipe: AuditoryPipeline, hrtf: HRTF, room: str, pair, directions, turn_deg: float,
+             rng: np.random.Generator) -> dict:
+    """Both sounds of ``pair`` at once from ``directions``: per sound, whether the MelCNN
+    detected it (its fused probability at the threshold in some frame) and the error of the
+    pipeline's head-frame estimate (still head) or of the tracker's (``turn_deg`` > 0) at the
+    end. ``pipe`` attends to both sounds."""
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    audio, poses = render_scene(hrtf, room, list(zip(pair, directions)), turn_deg, sign, rng)
+    pipe.reset()
+    peak = dict.fromkeys(pair, 0.0)
+    last, at = None, 0
+    for (t, rot), (t_next, _) in zip(poses, poses[1:] + [(audio.shape[1] / SAMPLE_RATE, None)]):
+        pipe.note_pose(t, rot)
+        end = int(round(t_next * SAMPLE_RATE))
+        for p in pipe.process(audio[:, at:end]):
+            last = p
+            for name in pair:
+                peak[name] = max(peak[name], p.probability(name))
+        at = end
+    final = poses[-1][1]
+    out = {"room": room, "pair": list(pair), "turn_deg": float(turn_deg),
+           "azimuth_deg": [round(float(vec_to_sph(d)[0]), 2) for d in directions], "sources": []}
+    for name, d in zip(pair, directions):
+        if turn_deg == 0.0:
+            e = last.directions.get(name)
+            est = None if e is None else final @ e.vector
+        else:
+            e = last.tracked.get(name)
+            est = None if e is None else e.world_vector
+        err = None if est is None else round(float(angular_error_deg(est, d)), 2)
+        out["sources"].append({"sound": name, "detected": bool(peak[name] >= pipe.threshold), "error_deg": err})
+    both = all(s["detected"] and s["error_deg"] is not None and s["error_deg"] <= PAIR_TOLERANCE_DEG
+               for s in out["sources"])
+    out["both"] = bool(both)
+    return out
+
+
+def summarize_pairs(records: list[dict]) -> dict:
+    """Per room and condition (``static``, ``tracked_30``): the share of pairs with both
+    sounds detected and localized within :data:`PAIR_TOLERANCE_DEG`, the share of sounds
+    detected, and ``n``."""
+    out: dict = {}
+    for room in sorted({r["room"] for r in records}):
+        out[room] = {}
+        for turn in sorted({r["turn_deg"] for r in records}):
+            sel = [r for r in records if r["room"] == room and r["turn_deg"] == turn]
+            key = "static" if turn == 0.0 else f"tracked_{turn:g}"
+            out[room][key] = {
+                "n": len(sel),
+                "both_localized": round(float(np.mean([r["both"] for r in sel])), 4),
+                "detected": round(float(np.mean([s["detected"] for r in sel for s in r["sources"]])), 4),
+            }
+    return out
+
+
 def summarize(records: list[dict]) -> dict:
     """Per room and estimate/turn: ``front_back_confusion``, ``mean_azimuth_error_deg``,
     ``mean_error_deg``, ``n``; for the tracker also ``decided`` and ``median_decision_s``."""
@@ -261,11 +351,36 @@ def _trials(pipe, ears, rooms, dirs, names, turns, rng, records, progress) -> No
     bar.close()
 
 
+def _pairs(pipe, ears, n, rng, progress) -> list[dict]:
+    """The two-source scenes: ``n`` per room of :data:`PAIR_ROOMS`, the pairs of
+    :data:`PAIRS` in turn, each with the head still and turning :data:`PAIR_TURN_DEG`."""
+    records: list[dict] = []
+    if n == 0:
+        return records
+    bar = progress_bar(total=len(PAIR_ROOMS) * n * 2, desc="pairs", unit="scene", disable=not progress)
+    for room in PAIR_ROOMS:
+        pipe.set_noise_power(noise_floor(ears, rng=rng, room=room))
+        for i in range(n):
+            pair = PAIRS[i % len(PAIRS)]
+            directions = draw_pair(rng)
+            pipe.reset()
+            pipe.clear_attention()
+            for name in pair:
+                pipe.attend(name)
+            for turn in (0.0, PAIR_TURN_DEG):
+                records.append(run_pair(pipe, ears, room, pair, directions, turn, rng))
+                bar.update()
+    bar.close()
+    return records
+
+
 def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horizontal: int = N_HORIZONTAL,
                n_off_plane: int = N_OFF_PLANE, sound_names=None, turns=TURNS_DEG, precedence: str | None = PRECEDENCE_DEFAULT,
-               seed: int = 0, quick: bool = False, progress: bool = True) -> dict:
+               pairs: int = N_PAIRS, seed: int = 0, quick: bool = False, progress: bool = True) -> dict:
     """Run the experiment (module docstring); writes ``active.json``, ``trials.json``,
-    ``active_confusion.png`` and ``REPORT.md`` into ``out`` and returns the summary."""
+    ``pairs.json`` (with ``pairs`` > 0), ``active_confusion.png`` and ``REPORT.md`` into
+    ``out`` and returns the summary. ``pairs``: two-source scenes per room of
+    :data:`PAIR_ROOMS` (:func:`run_pair`), each heard with the head still and turning."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
     for room in rooms:
@@ -285,12 +400,15 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
             raise ConfigError(f"{what} must be an integer >= 0, got {n!r}")
     if n_horizontal + n_off_plane == 0:
         raise ConfigError("no directions: give n_horizontal or n_off_plane > 0")
+    if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 0:
+        raise ConfigError(f"pairs must be an integer >= 0, got {pairs!r}")
     if quick:
         n_horizontal, n_off_plane = min(n_horizontal, 4), min(n_off_plane, 2)
         if sound_names is None:
             names = ("white_noise", "reverse_alarm")
         if tuple(turns) == TURNS_DEG:
             turns = (0.0, 30.0)
+        pairs = min(pairs, 2)
     out = check_writable_folder(out, what="--out")
     ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
     grid = DirectionGrid.paper(ears)
@@ -307,6 +425,7 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
     torch.set_num_threads(1)  # the networks are small: more threads busy-wait against the renderer's BLAS
     try:
         _trials(pipe, ears, rooms, dirs, names, turns, rng, records, progress)
+        pair_records = _pairs(pipe, ears, pairs, rng, progress)
     finally:
         torch.set_num_threads(threads)
     summary = {
@@ -320,8 +439,16 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
         "wall_s": round(time.perf_counter() - t0, 1),
         "targets": {"front_back_confusion_max": 0.05, "mean_azimuth_error_deg_max": 10.0, "turn_deg_max": 30.0},
     }
+    if pair_records:
+        summary["pairs"] = {
+            "rooms": summarize_pairs(pair_records), "per_room": int(pairs), "sounds": [list(p) for p in PAIRS],
+            "min_separation_deg": PAIR_MIN_SEPARATION_DEG, "tolerance_deg": PAIR_TOLERANCE_DEG,
+            "targets": {"anechoic_min": 0.8, "rooms_min": 0.6},
+        }
     from acoustic_sim.experiments.report import write_json
     write_json(out / "trials.json", records)
+    if pair_records:
+        write_json(out / "pairs.json", pair_records)
     write_json(out / "active.json", summary)
     figure(summary, out / "active_confusion.png")
     (out / "REPORT.md").write_text(report(summary))
@@ -374,6 +501,23 @@ def table(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def pairs_table(summary: dict) -> str:
+    """The two-source results as a Markdown table ('' without them)."""
+    p = summary.get("pairs")
+    if not p:
+        return ""
+    lines = [f"Two sounds at once ({', '.join(' + '.join(x) for x in p['sounds'])}; {p['per_room']} scenes per room, "
+             f"at least {p['min_separation_deg']:g} deg apart): the share of scenes with both detected and each "
+             f"localized within {p['tolerance_deg']:g} deg (targets: {p['targets']['anechoic_min']} anechoic, "
+             f"{p['targets']['rooms_min']} in the rooms).\n",
+             "| room | estimate | both localized | sounds detected | scenes |", "|---|---|---|---|---|"]
+    for room, res in p["rooms"].items():
+        for key, s in res.items():
+            est = "still head, head frame" if key == "static" else f"tracked, {key.split('_', 1)[1]} deg turn"
+            lines.append(f"| {room} | {est} | {s['both_localized']:.2f} | {s['detected']:.2f} | {s['n']} |")
+    return "\n".join(lines) + "\n"
+
+
 def report(summary: dict) -> str:
     d = summary["directions"]
     return (
@@ -387,6 +531,7 @@ def report(summary: dict) -> str:
         f"{summary['targets']['front_back_confusion_max']}, mean azimuth error at most "
         f"{summary['targets']['mean_azimuth_error_deg_max']:g} deg.\n\n"
         + table(summary)
+        + ("\n" + pairs_table(summary) if summary.get("pairs") else "")
         + "\n![confusion rate against turn angle](active_confusion.png)\n\n"
         f"Made by `acoustic-sim eval active` in {summary['wall_s']} s.\n"
     )
@@ -407,6 +552,8 @@ def readme_section(results_dir, image_prefix: str = "results/active") -> str:
         f" --horizontal {d['horizontal']}" if d["horizontal"] != N_HORIZONTAL else "",
         f" --off-plane {d['off_plane']}" if d["off_plane"] != N_OFF_PLANE else "",
         f" --seed {summary['seed']}" if summary["seed"] else "",
+        f" --pairs {summary['pairs']['per_room'] if 'pairs' in summary else 0}"
+        if summary.get("pairs", {}).get("per_room", 0) != N_PAIRS else "",
         " --quick" if summary["quick"] else "",
     ])
     return (
@@ -414,6 +561,7 @@ def readme_section(results_dir, image_prefix: str = "results/active") -> str:
         f"{d['horizontal']} + {d['off_plane']} directions per room, {len(summary['sounds'])} sounds, evidence rule "
         f"`{summary['precedence']}`, seed {summary['seed']}; {summary['wall_s']} s).\n\n"
         + table(summary)
+        + ("\n" + pairs_table(summary) if summary.get("pairs") else "")
         + f"\n![front-back confusion against the head turn]({image_prefix}/active_confusion.png)\n{END}"
     )
 
