@@ -134,7 +134,7 @@ def add_parsers(sub) -> None:
                     help="two-source scenes per room (anechoic, car_cabin, lab; default 50; 0: none): alarm + voice, "
                     "ratchet + horn, gearshift + key turning at once, at least 30 deg apart")
     ea.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    ea.add_argument("--quick", action="store_true", help="4 + 2 directions, 2 sounds, turns of 0 and 30 deg (for tests)")
+    ea.add_argument("--quick", action="store_true", help="3 + 1 directions, 2 sounds, turns of 0 and 30 deg, 1 two-source scene per room (for tests)")
     ea.set_defaults(func=cmd_eval_active)
     et = esub.add_parser(
         "tasks",

@@ -31,7 +31,8 @@ default with ``precedence="wavefront+coherence"``: the first wavefront at onsets
 them, the bins whose interaural coherence shows the direct sound (a continuous noise has one
 onset only). What each rule gave is in docs/notes/active_hearing.md.
 
-``--quick`` runs 4 + 2 directions, two sounds and turns of 0 and 30 deg with the small models:
+``--quick`` runs 3 + 1 directions, two sounds, turns of 0 and 30 deg and one two-source scene
+per room with the small models:
 every file with every key, for the tests. Its numbers are not the experiment's.
 """
 
@@ -403,12 +404,12 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 0:
         raise ConfigError(f"pairs must be an integer >= 0, got {pairs!r}")
     if quick:
-        n_horizontal, n_off_plane = min(n_horizontal, 4), min(n_off_plane, 2)
+        n_horizontal, n_off_plane = min(n_horizontal, 3), min(n_off_plane, 1)
         if sound_names is None:
             names = ("white_noise", "reverse_alarm")
         if tuple(turns) == TURNS_DEG:
             turns = (0.0, 30.0)
-        pairs = min(pairs, 2)
+        pairs = min(pairs, 1)
     out = check_writable_folder(out, what="--out")
     ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
     grid = DirectionGrid.paper(ears)
