@@ -322,6 +322,27 @@ def test_config_errors():
         Recorder(rr.RecordingStream("t"), grid_vectors=np.zeros((5, 2)))
 
 
+def test_tracked_directions_are_drawn_from_the_head(tmp_path, grid):
+    """The percept's world-frame tracks are logged as arrows in the head frame, labelled with
+    their front-back decision."""
+    from acoustic_sim.auditory.tracker import TrackedDirection
+
+    probs = np.zeros(len(SOUND_CLASSES), np.float32)
+    track = TrackedDirection(world_vector=np.array([0.0, 1.0, 0.0]), azimuth_deg=90.0, elevation_deg=0.0,
+                             head_vector=np.array([-1.0, 0.0, 0.0]), head_azimuth_deg=180.0, head_elevation_deg=0.0,
+                             front=False, decided=True, margin_nats=5.0, confidence=0.9, frames=12)
+    p = Percept(frame=0, time_s=0.016, classes=SOUND_CLASSES, probabilities=probs, detected=(),
+                tracked={"human_voice": track})
+    path = tmp_path / "t.rrd"
+    with Recorder.open(path, None, grid) as rec:
+        rec.log_frame(0.016, 0, percept=p, head_pose=(np.zeros(3), np.eye(3)))
+    chunks, _, _ = _read(path)
+    labels = [row for row in _column(chunks, "/" + bp.TRACKED_DIRECTIONS, "Arrows3D:labels") if row]
+    vectors = [np.asarray(v) for v in _column(chunks, "/" + bp.TRACKED_DIRECTIONS, "Arrows3D:vectors") if v]
+    assert labels == [["human_voice decided"]]
+    assert vectors[0][0][0] < 0 and abs(vectors[0][0][1]) < 1e-6  # behind the head, as the track says
+
+
 def test_log_frame_errors(tmp_path, grid):
     rec = Recorder.open(tmp_path / "e.rrd", None, grid)
     with pytest.raises(RecordingError, match="audio_block"):

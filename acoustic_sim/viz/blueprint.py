@@ -13,6 +13,7 @@ WORLD = "world"
 HEARING = "world/hearing"  # the head frame (x forward, y left, z up), posed every frame
 TRUE_DIRECTIONS = "world/hearing/true"
 ESTIMATED_DIRECTIONS = "world/hearing/estimated"
+TRACKED_DIRECTIONS = "world/hearing/tracked"  # the world-frame tracker's directions, seen from the head
 EXISTENCE = "world/hearing/existence"
 SOURCES = "world/sources"
 EYE_FRUSTUM = "world/eye_camera"  # the eye camera's frustum in the scene, posed every frame

@@ -322,6 +322,7 @@ class Recorder:
         self._last_sources: tuple | None = None
         self._last_true: tuple | None = None
         self._last_est: tuple | None = None
+        self._last_tracked: tuple | None = None
         self._last_map: np.ndarray | None = None
         self._camera_seen = 0
         # spectrogram ring buffer: (W, 2, n_mels) uint8
@@ -583,6 +584,9 @@ class Recorder:
                 items.append((c, self._class_rgb.get(c, TRUE_COLOR), _unit(d.vector)))
                 best = best if best is not None else d
         self._log_arrows(bp.ESTIMATED_DIRECTIONS, "_last_est", k, t, items)
+        tracked = [(f"{c} {'decided' if d.decided else 'front/back?'}", self._class_rgb.get(c, TRUE_COLOR),
+                    _unit(d.head_vector)) for c, d in getattr(percept, "tracked", {}).items()]
+        self._log_arrows(bp.TRACKED_DIRECTIONS, "_last_tracked", k, t, tracked)
         if self.grid is not None:
             self._log_map(k, t, best)
         if percept.mel is not None:
