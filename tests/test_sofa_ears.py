@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import sofar
 
-from acoustic_sim.acoustics import hrtf as hrtf_module
-from acoustic_sim.acoustics import sofa_io
+from acoustic_sim.acoustics.hrtf import hrtf_set as hrtf_module
+from acoustic_sim.acoustics.hrtf import sofa_geometry as sofa_io
 from acoustic_sim.acoustics.hrtf import HRTF, KEMAR_PATH, sofa_left_receiver
 from acoustic_sim.errors import HRTFError
 from acoustic_sim.frames import sph_to_vec

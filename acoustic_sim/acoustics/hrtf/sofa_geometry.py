@@ -1,108 +1,52 @@
-"""Reading SOFA files (``SimpleFreeFieldHRIR``) safely, for :mod:`acoustic_sim.acoustics.hrtf`.
-
-sofar reads the file; what it does not check is checked here, and every failure becomes an
-:class:`~acoustic_sim.errors.HRTFError` naming the file: a missing, empty, truncated or
-non-HDF5 file before netCDF4 sees it (:func:`check_container`), a variable that is missing
-or not numeric (:func:`sofa_array`), positions in an unsupported coordinate type
-(:func:`positions_to_cartesian`), the listener's orientation (:func:`listener_frame`), and
-which receiver is the left ear (:func:`left_receiver`). What the responses mean
-(conventions, delays, normalization) is the HRTF loader's (``HRTF.load``).
+"""A SOFA file's geometry in the head frame, for :mod:`acoustic_sim.acoustics.hrtf.sofa_read`:
+source positions (:func:`positions_to_cartesian`), the listener's orientation
+(:func:`listener_frame`) and which receiver is the left ear (:func:`left_receiver`:
+``ReceiverPosition`` checked against the data, for the metadata is wrong in some public sets
+and files of an old Matlab/Octave SOFA API store the ears' y mirrored).
 """
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from acoustic_sim.errors import HRTFError
 from acoustic_sim.frames import sph_to_vec
 
-
-_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-
-
-def check_container(path: Path) -> None:
-    """Cheap checks before netCDF4 sees the file: existence, type, HDF5 superblock, size."""
-    if not path.exists():
-        raise HRTFError(f"HRTF file {path} does not exist")
-    if path.is_dir():
-        raise HRTFError(f"HRTF path {path} is a directory, expected a SOFA file")
-    if not path.is_file():
-        raise HRTFError(f"HRTF path {path} is not a regular file")
-    size = path.stat().st_size
-    if size == 0:
-        raise HRTFError(f"HRTF file {path} is empty (0 bytes)")
-    with open(path, "rb") as fh:
-        head = fh.read(4096)
-    if head[:4] in (b"CDF\x01", b"CDF\x02"):
-        raise HRTFError(f"{path} is a netCDF-3 file; SOFA files are netCDF-4 (HDF5)")
-    # The HDF5 superblock sits at offset 0, 512, 1024, 2048, ...
-    offset = next((o for o in (0, 512, 1024, 2048) if head[o:o + 8] == _HDF5_SIGNATURE), None)
-    if offset is None:
-        raise HRTFError(f"{path} is not a SOFA file: no HDF5/netCDF-4 signature")
-    sb = head[offset:]
-    version = sb[8] if len(sb) > 8 else -1
-    try:
-        if version in (0, 1):
-            n_off = sb[13]
-            start = 24 + (4 if version == 1 else 0)
-            base = int.from_bytes(sb[start:start + n_off], "little")
-            eof = int.from_bytes(sb[start + 2 * n_off:start + 3 * n_off], "little")
-        elif version in (2, 3):
-            n_off = sb[9]
-            base = int.from_bytes(sb[12:12 + n_off], "little")
-            eof = int.from_bytes(sb[12 + 2 * n_off:12 + 3 * n_off], "little")
-        else:
-            raise HRTFError(f"{path}: unknown HDF5 superblock version {version}")
-    except IndexError:
-        raise HRTFError(f"{path} is truncated: incomplete HDF5 superblock") from None
-    if base + eof > size:
-        raise HRTFError(f"{path} is truncated: the HDF5 superblock records {base + eof} bytes, "
-                        f"the file has {size}")
-
-
-def read_sofa(path: Path):
-    """Read a SimpleFreeFieldHRIR file with sofar; every failure becomes an HRTFError."""
-    import sofar
-
-    check_container(path)
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            target = path
-            if path.suffix != ".sofa":  # sofar silently swaps any other suffix for .sofa
-                target = Path(tmp) / "hrtf.sofa"
-                try:
-                    os.symlink(path.resolve(), target)
-                except OSError:
-                    target.write_bytes(path.read_bytes())
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                return sofar.read_sofa(str(target), verify=False, verbose=False)
-    except HRTFError:
-        raise
-    except Exception as exc:  # sofar / netCDF4 / HDF5 errors of any kind
-        raise HRTFError(f"cannot read SOFA file {path}: {type(exc).__name__}: {exc}") from exc
-
-
-def sofa_array(sofa, name, path) -> np.ndarray:
-    value = getattr(sofa, name, None)
-    if value is None:
-        raise HRTFError(f"{path}: missing variable {name.replace('Data_', 'Data.')}")
-    if isinstance(value, str):
-        raise HRTFError(f"{path}: {name} is a string, expected numbers")
-    try:
-        arr = np.ma.filled(np.ma.asarray(value, dtype=float), np.nan)
-    except (TypeError, ValueError) as exc:
-        raise HRTFError(f"{path}: {name} is not numeric: {exc}") from exc
-    return np.asarray(arr)
+# --------------------------------------------------------------------------------------
+# Positions and orientation
+# --------------------------------------------------------------------------------------
 
 
 def positions_to_cartesian(pos, kind, units, path, name) -> np.ndarray:
+    """Positions of the file's coordinate type as cartesian coordinates.
+
+    Parameters
+    ----------
+    pos : numpy.ndarray, shape (M, 3)
+        Cartesian (x, y, z in m) or spherical (azimuth, elevation, radius: degrees unless
+        ``units`` mentions radians; radius in m) positions.
+    kind : str or None
+        ``"cartesian"`` or ``"spherical"`` (the default when None), case-insensitive.
+    units : str or None
+        The file's units string, e.g. ``"degree, degree, metre"``.
+    path : str or os.PathLike
+        The file, for the messages.
+    name : str
+        The variable, e.g. ``"SourcePosition"``, for the messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 3)
+        x, y, z in m (a copy).
+
+    Raises
+    ------
+    HRTFError
+        ``kind`` is neither spherical nor cartesian.
+    """
     kind = str(kind or "spherical").strip().lower()
     if kind == "cartesian":
         return pos.copy()
@@ -115,7 +59,27 @@ def positions_to_cartesian(pos, kind, units, path, name) -> np.ndarray:
 
 
 def listener_frame(sofa, path) -> np.ndarray | None:
-    """Rotation (3, 3) from the file's frame to the listener's head frame, or None."""
+    """Rotation from the file's frame to the listener's head frame.
+
+    Parameters
+    ----------
+    sofa : sofar.Sofa
+        The file's content: ``ListenerView`` and ``ListenerUp`` (cartesian, or spherical in
+        degrees), one each; ``ListenerUp`` defaults to +z.
+    path : str or os.PathLike
+        The file, for the messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3), or None
+        Rows: the head's x, y, z axes in the file's frame; None without ``ListenerView`` or
+        when the frames agree.
+
+    Raises
+    ------
+    HRTFError
+        One view per measurement, a zero vector, or parallel view and up vectors.
+    """
     view = getattr(sofa, "ListenerView", None)
     up = getattr(sofa, "ListenerUp", None)
     if view is None:
@@ -165,6 +129,7 @@ lateral directions (about the 26 deg cone around the interaural axis when it is 
 
 
 def _parse_version(text) -> tuple[int, int, int] | None:
+    """``(major, minor, patch)`` of a version string ``"a.b.c"``, or None if it is not one."""
     match = re.fullmatch(r"\s*(\d+)\.(\d+)\.(\d+)\s*", str(text or ""))
     return tuple(int(g) for g in match.groups()) if match else None
 
@@ -176,6 +141,17 @@ def ari_mirrored_receivers(sofa) -> bool:
     has a negative y only if ``APIName`` is :data:`ARI_API_NAME` and ``APIVersion``, read as
     three integers ``a.b.c``, is at most 1.1.0; it then logs a warning and keeps receiver 0
     as the left ear. A version that does not parse as three integers does not qualify.
+
+    Parameters
+    ----------
+    sofa : sofar.Sofa
+        The file's content (any object with ``GLOBAL_APIName`` / ``GLOBAL_APIVersion``
+        attributes; missing ones count as empty).
+
+    Returns
+    -------
+    bool
+        True for :data:`ARI_API_NAME` at a version <= :data:`ARI_MIRRORED_UP_TO`.
     """
     if str(getattr(sofa, "GLOBAL_APIName", "") or "").strip() != ARI_API_NAME:
         return False
@@ -184,9 +160,24 @@ def ari_mirrored_receivers(sofa) -> bool:
 
 
 def receiver_y(sofa) -> np.ndarray | None:
-    """The interaural (y) coordinate of each of the two receivers, shape (2,), or None when
-    ``ReceiverPosition`` is absent or not two finite positions. Per-measurement positions
-    (``R, C, M``) count only when the two receivers keep their order in every measurement."""
+    """The interaural (y) coordinate of each of the two receivers.
+
+    Per-measurement positions (``R, C, M``) count only when the two receivers keep their
+    order in every measurement (the first measurement's are returned then).
+
+    Parameters
+    ----------
+    sofa : sofar.Sofa
+        The file's content: ``ReceiverPosition`` (2, 3) or (2, 3, M), cartesian in m or
+        spherical (degrees unless the units say radians).
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,), or None
+        y in m of receiver 0 and 1; None when ``ReceiverPosition`` is absent, not two finite
+        positions, of another coordinate type, or the receivers swap sides between
+        measurements.
+    """
     rec = getattr(sofa, "ReceiverPosition", None)
     if rec is None or isinstance(rec, str):
         return None
@@ -248,12 +239,24 @@ def left_receiver(sofa, ir: np.ndarray, directions: np.ndarray, path) -> int:
     Parameters
     ----------
     sofa : sofar.Sofa
+        The file's content (``ReceiverPosition``, ``GLOBAL_APIName``, ``GLOBAL_APIVersion``).
     ir : numpy.ndarray, shape (M, 2, N)
-        ``Data.IR`` in the file's receiver order; no response is all zeros.
+        ``Data.IR`` in the file's receiver order (dimensionless, finite); no response is all
+        zeros.
     directions : numpy.ndarray, shape (M, 3)
         Unit source directions in the head frame (y toward the left ear).
-    path : path
+    path : str or os.PathLike
         The file, for the messages.
+
+    Returns
+    -------
+    int
+        0 or 1: the receiver that is the left ear.
+
+    Raises
+    ------
+    HRTFError
+        Neither ``ReceiverPosition`` nor the data tell the ears apart.
 
     Two witnesses. The metadata: the receiver with the larger y in ``ReceiverPosition`` is
     the left ear, except in a file of the ARI SOFA API for Matlab/Octave <= 1.1.0
