@@ -153,9 +153,9 @@ def test_fusion_is_the_pipeline_s_choice(pipe, kemar, tmp_path):
     x = analyze(audio).spectra
     for fusion in FUSIONS:
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=pipe.ssdenet, melcnn=pipe.melcnn, fusion=fusion)
-        assert p.fusion == fusion
+        assert p.settings.fusion == fusion
         _, overall = p.localize(audio)
-        maps, _ = pipe.ssdenet.frame_maps(x, p._valid(x), fusion)
+        maps, _ = pipe.ssdenet.frame_maps(x, p.valid_bins(x), fusion)
         np.testing.assert_allclose(overall.existence, maps.sum(axis=0), rtol=1e-5)
         assert abs(overall.azimuth_deg - 45.0) < 20.0, (fusion, overall.azimuth_deg)
     with pytest.raises(ConfigError, match="fusion"):
@@ -306,7 +306,7 @@ def test_class_direction_fuses_its_valid_bins_and_sums_recent_frames(pipe, kemar
                          fusion=fusion)
     percepts = p.process(audio)
     x = analyze(audio).spectra
-    valid = valid_bins(x, p.noise_power, p.factor)[:, bank.bins]  # (K, n_bank)
+    valid = valid_bins(x, p.noise_power, p.settings.factor)[:, bank.bins]  # (K, n_bank)
     sel = x[:, :, bank.bins]
     maps = bank.existence(ild_ipd(sel[:, 0], sel[:, 1]))  # (K, n_bank, D): every bin of every frame
     checked = 0
@@ -314,7 +314,7 @@ def test_class_direction_fuses_its_valid_bins_and_sums_recent_frames(pipe, kemar
         for c in (0, 2):
             own = np.isin(bank.bins, cnn.characteristic_bins[p.classes[c]])
             use = valid[k - 4 : k + 1] & own  # the last 5 frames
-            use &= (use.sum(axis=1) >= p.coverage * own.sum())[:, None]  # frames that cover the class's bins
+            use &= (use.sum(axis=1) >= p.settings.coverage * own.sum())[:, None]  # frames that cover the class's bins
             if not use.any():
                 continue
             want = _fused(maps[k - 4 : k + 1], use, fusion).sum(axis=0)
@@ -368,7 +368,7 @@ def test_a_tone_counts_only_at_its_own_bin_not_at_its_sidelobes(pipe, kemar):
         p = AuditoryPipeline(hrtf=kemar, grid=pipe.grid, ssdenet=bank, melcnn=pipe.melcnn, leakage=leakage)
         # Per frame (window=1), after the frames that hold the tone's broadband switch-on.
         n_bins[leakage] = [est.n_bins for _, est in p.localize(audio, window=1)[0][3:]]
-    assert pipe.leakage == 10.0 and n_bins[10.0] == [1] * len(n_bins[10.0])  # the tone's own network
+    assert pipe.settings.leakage == 10.0 and n_bins[10.0] == [1] * len(n_bins[10.0])  # the tone's own network
     assert min(n_bins[0.0]) >= 8  # sidelobes reach many of the bank's networks
     for bad in (-1.0, float("nan")):
         with pytest.raises(ConfigError, match="leakage"):

@@ -187,6 +187,7 @@ class DirectionTracker:
         self._loglik = np.zeros((0, len(self.world)))
         self._frames = np.zeros(0, np.int64)
         self._last_t = np.zeros(0)
+        self._estimates: dict = {}  # class -> (its evidence count, pose key, estimate): until either changes
         for name in classes:
             self.track(name)
         self._poses: deque = deque(maxlen=POSE_HISTORY)  # (time_s, rotation), time ascending
@@ -211,12 +212,14 @@ class DirectionTracker:
         self._last_t[:] = -np.inf
         self._poses.clear()
         self._pull_cache = None
+        self._estimates.clear()
 
     def forget(self) -> None:
         """Forget the evidence, keep the poses (the listening warm-up before an episode)."""
         self._loglik[:] = 0.0
         self._frames[:] = 0
         self._last_t[:] = -np.inf
+        self._estimates.clear()
 
     def note_pose(self, time_s: float, rotation) -> None:
         """The head's pose at ``time_s`` (s, the sample clock): ``rotation`` (3, 3) maps head
@@ -302,6 +305,16 @@ class DirectionTracker:
         if rotation is None:
             rotation = self._poses[-1][1] if self._poses else np.eye(3)
         r = np.asarray(rotation, float)
+        # Asked every frame by the pipeline: computed again only after new evidence (each
+        # frame added counts one) or at another pose.
+        key = (int(self._frames[c]), r.tobytes())
+        kept = self._estimates.get(c)
+        if kept is not None and kept[0] == key:
+            return kept[1]
+        self._estimates[c] = (key, self._estimate(c, r))
+        return self._estimates[c][1]
+
+    def _estimate(self, c: int, r: np.ndarray) -> TrackedDirection:
         ll = self._loglik[c]
         k = int(np.argmax(ll))
         w = self.world.vectors[k]
