@@ -7,7 +7,8 @@ import pytest
 import soundfile as sf
 from scipy import signal
 
-from acoustic_sim.acoustics import espeak, sounds
+from acoustic_sim.acoustics import sounds
+from acoustic_sim.acoustics.sounds import espeak
 from acoustic_sim.errors import SoundError
 
 SR = 44100

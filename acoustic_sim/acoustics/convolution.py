@@ -1,5 +1,6 @@
 """Streaming convolution kernels the renderer is built from.
 
+- :func:`rfft`, :func:`irfft`, :func:`fft_size`: the small FFTs of the renderer's block loop.
 - :func:`fractional_hrir_table`: every HRIR pre-shifted by ``q / Q`` of a sample, so that
   placing an image source at a fractional delay is a table lookup plus an integer offset.
 - :func:`assemble`: overlap-add many short responses at integer offsets into one (or
@@ -58,6 +59,13 @@ def irfft(spectrum: np.ndarray, n: int) -> np.ndarray:
     return _POCKETFFT.c2r(spectrum, (spectrum.ndim - 1,), n, False, 2, None, 1)
 
 
+def fft_size(n: int) -> int:
+    """Smallest FFT length >= ``n`` (samples, >= 1) of the form 2**k or 3 * 2**k (both fast
+    in pocketfft)."""
+    p2 = 1 << max(int(n - 1).bit_length(), 0)
+    p3 = 3 * (1 << max(int(-(-n // 3) - 1).bit_length(), 0))
+    return min(p2, p3)
+
 def fractional_hrir_table(hrir: np.ndarray, phases: int) -> np.ndarray:
     """HRIRs delayed by ``q / phases`` samples, q = 0..phases-1, interleaved per ear.
 
@@ -105,9 +113,8 @@ def assemble(rows: np.ndarray, offsets: np.ndarray, length: int, weights: np.nda
 
     The rows are written once into a dense (M, span) matrix at their offsets (the span
     from the earliest to the latest sample any row reaches), and one matrix product with
-    the weights sums every set: 3x faster here than one ``numpy.bincount`` over all
-    weighted samples (which was itself 4x faster than a Python loop of slice additions
-    and 6x faster than pyroomacoustics' ``libroom.delay_sum``).
+    the weights sums every set (faster than ``numpy.bincount``, slice additions or
+    pyroomacoustics' ``libroom.delay_sum``; measurements: docs/notes/renderer.md).
     """
     rows = np.asarray(rows)
     m, width = rows.shape
