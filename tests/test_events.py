@@ -4,23 +4,14 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from acoustic_sim.acoustics.cutting import alarm_loop, gearshift_throws, onsets, ratchet_clicks
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
 from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.egonoise import EgoNoiseConfig, MotorEgoNoise
-from acoustic_sim.world.events import (
-    EMITTERS,
-    EventsConfig,
-    GearshiftTracker,
-    RatchetTracker,
-    SoundEvents,
-    alarm_loop,
-    gearshift_throws,
-    onsets,
-    ratchet_clicks,
-)
-from acoustic_sim.world.view import GearshiftGeometry, RatchetGeometry
+from acoustic_sim.world.events import EMITTERS, EventsConfig, GearshiftTracker, RatchetTracker, SoundEvents
+from acoustic_sim.world.lever_geometry import GearshiftGeometry, RatchetGeometry
 
 DEG = np.pi / 180.0
 GEARS = GearshiftGeometry(detents_rad=tuple(np.deg2rad([0.0, 15.0, 30.0, 45.0])))

@@ -4,6 +4,7 @@ they do for clicks in the car cabin."""
 import numpy as np
 import pytest
 
+from acoustic_sim.acoustics.cutting import ratchet_clicks
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset
@@ -11,7 +12,6 @@ from acoustic_sim.auditory.pipeline import AuditoryPipeline
 from acoustic_sim.auditory.precedence import FirstWavefront, _row_medians
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import rotation_zyx
-from acoustic_sim.world.events import ratchet_clicks
 from detectors import AlwaysDetects
 
 
