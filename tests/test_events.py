@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from acoustic_sim.acoustics.cutting import alarm_loop, gearshift_throws, onsets, ratchet_clicks
+from acoustic_sim.acoustics.sounds.cutting import alarm_loop, gearshift_throws, onsets, ratchet_clicks
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
 from acoustic_sim.world import names, scenes

@@ -4,7 +4,7 @@ they do for clicks in the car cabin."""
 import numpy as np
 import pytest
 
-from acoustic_sim.acoustics.cutting import ratchet_clicks
+from acoustic_sim.acoustics.sounds.cutting import ratchet_clicks
 from acoustic_sim.acoustics.microphone import Microphone
 from acoustic_sim.acoustics.renderer import BinauralRenderer
 from acoustic_sim.acoustics.room import room_preset

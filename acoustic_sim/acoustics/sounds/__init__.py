@@ -19,6 +19,8 @@ learn the class and not one waveform. Where each lives:
   over here!") through :func:`speech`;
 - :mod:`.waves`: :func:`test_signal`, :func:`white_noise`, :func:`load_wav`;
 - :mod:`.synth_blocks`, :mod:`.sound_checks`: what the models are built from and checked with.
+- :mod:`.cutting`: the mechanisms' signals cut into what the world plays (the alarm's loop,
+  one ratchet click per tooth, the gearshift's throws; used by :mod:`acoustic_sim.world.events`).
 
 This module is the bank's front door: it names the classes, dispatches :func:`generate`,
 and decides once per request which speech engine this machine has (:func:`voice_engine`).

@@ -54,14 +54,14 @@ draws
 schedule
     The event source, :class:`SoundEvents`: requests and traces in, events out.
 
-The mechanisms' signals are cut by :mod:`acoustic_sim.acoustics.cutting` (:func:`alarm_loop`,
+The mechanisms' signals are cut by :mod:`acoustic_sim.acoustics.sounds.cutting` (:func:`alarm_loop`,
 :func:`ratchet_clicks`, :func:`gearshift_throws`, :func:`onsets`), re-exported here for the
 imports that knew them in this module.
 """
 
 from __future__ import annotations
 
-from acoustic_sim.acoustics.cutting import alarm_loop, gearshift_throws, onsets, ratchet_clicks
+from acoustic_sim.acoustics.sounds.cutting import alarm_loop, gearshift_throws, onsets, ratchet_clicks
 from acoustic_sim.world.events.crossings import GearshiftTracker, RatchetTracker
 from acoustic_sim.world.events.draws import EmitterDraws
 from acoustic_sim.world.events.emitters import EMITTERS, EVENT_KINDS, Emitter, EventsConfig, SoundEvent

@@ -4,7 +4,7 @@ Every emitter draws its sounds with :func:`acoustic_sim.acoustics.sounds.generat
 own generator, spawned in a fixed order (:data:`~acoustic_sim.world.events.emitters.EMITTERS`)
 from the one passed in: the same seed and the same physics give the same samples, and one
 emitter's sounds do not depend on what the others did. The mechanisms' signals (one beeper,
-one ratchet's clicks, one lever's throws; :mod:`acoustic_sim.acoustics.cutting`) are drawn
+one ratchet's clicks, one lever's throws; :mod:`acoustic_sim.acoustics.sounds.cutting`) are drawn
 once, at their first event or at a reset with ``prefetch``; a requested sound is drawn when
 first needed (at once with ``prefetch``), always in request order, so the signals are the
 same either way.
@@ -17,7 +17,7 @@ import collections
 import numpy as np
 
 from acoustic_sim.acoustics import sounds
-from acoustic_sim.acoustics.cutting import alarm_loop, gearshift_throws, ratchet_clicks
+from acoustic_sim.acoustics.sounds.cutting import alarm_loop, gearshift_throws, ratchet_clicks
 from acoustic_sim.world.events.emitters import EMITTERS, EventsConfig
 
 
