@@ -20,9 +20,10 @@ sounds' renderer sources have one owner. Why: the chain used to be written out i
 recomputing the front end's FFT itself, and task sounds reaching through the coupling into
 the renderer.
 
-The loop writes the world's controls nowhere: set ``coupling.data.ctrl`` before
-:meth:`HearingLoop.step`. Its randomness is that of its parts (the renderer's, the events',
-the microphone's generators), so the same parts give the same steps bit for bit.
+The loop writes the world's controls nowhere: set them with
+:func:`acoustic_sim.world.actuation.set_control` before :meth:`HearingLoop.step`. Its
+randomness is that of its parts (the renderer's, the events', the microphone's generators),
+so the same parts give the same steps bit for bit.
 """
 
 from __future__ import annotations

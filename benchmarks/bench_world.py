@@ -16,6 +16,7 @@ Target: ``world_step_ms`` <= 1 ms on 2 cores (one is used).
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import time
@@ -24,7 +25,7 @@ import mujoco
 import numpy as np
 
 from acoustic_sim.acoustics.hrtf import HRTF
-from acoustic_sim.world import names, scenes
+from acoustic_sim.world import actuation, names, scenes
 from acoustic_sim.world.coupling import Coupling
 
 DEG = np.pi / 180.0
@@ -35,25 +36,26 @@ def _controls(c: Coupling, k: int) -> None:
     """Task-like controls for control step ``k`` (writes ctrl, mocap and the lever hands)."""
     t = k / 62.5
     d, m, v = c.data, c.model, c.view
-    d.actuator(names.NECK_JOINTS[0]).ctrl[0] = 60.0 * DEG * np.sin(2 * np.pi * t / 3.2)
-    d.actuator(names.NECK_JOINTS[1]).ctrl[0] = 15.0 * DEG * np.sin(2 * np.pi * t / 2.1)
+    act = functools.partial(actuation.set_control, m, d)
+    act(names.NECK_JOINTS[0], 60.0 * DEG * np.sin(2 * np.pi * t / 3.2))
+    act(names.NECK_JOINTS[1], 15.0 * DEG * np.sin(2 * np.pi * t / 2.1))
     for i, side in enumerate(names.ARM_SIDES):
-        d.actuator(names.arm_joints(side)[0]).ctrl[0] = 0.3 + 0.25 * np.sin(2 * np.pi * t / 2.5 + i)
-        d.actuator(names.arm_joints(side)[3]).ctrl[0] = 0.8 + 0.3 * np.sin(2 * np.pi * t / 1.7 + i)
+        act(names.arm_joints(side)[0], 0.3 + 0.25 * np.sin(2 * np.pi * t / 2.5 + i))
+        act(names.arm_joints(side)[3], 0.8 + 0.3 * np.sin(2 * np.pi * t / 1.7 + i))
     if v.gearshift_geometry is not None:
         phase = (t % 6.0) / 6.0  # P -> R -> N and back, every 6 s
         gear = np.interp(phase, [0, 0.15, 0.3, 0.45, 0.6, 0.8, 1.0], [0, 0, 15, 15, 30, 30, 0]) * DEG
-        dof = m.joint(names.GEARSHIFT_JOINT).dofadr[0]
-        d.qfrc_applied[dof] = 10.0 * (gear - v.gearshift_angle()) - 0.3 * v.joint_velocity(names.GEARSHIFT_JOINT)
+        actuation.set_joint_force(m, d, names.GEARSHIFT_JOINT,
+                                  10.0 * (gear - v.gearshift_angle()) - 0.3 * v.joint_velocity(names.GEARSHIFT_JOINT))
         pull = (t % 4.0) / 4.0  # pull over the teeth, hold, release with the button
         brake = np.interp(pull, [0, 0.6, 1.0], [0, 40, 40]) * DEG
-        dof = m.joint(names.BRAKE_JOINT).dofadr[0]
-        d.qfrc_applied[dof] = 60.0 * (brake - v.brake_angle()) - v.joint_velocity(names.BRAKE_JOINT) if pull < 0.8 else 0.0
-        d.actuator(names.BRAKE_RELEASE_ACTUATOR).ctrl[0] = 1.0 if pull >= 0.8 else 0.0
+        actuation.set_joint_force(m, d, names.BRAKE_JOINT,
+                                  60.0 * (brake - v.brake_angle()) - v.joint_velocity(names.BRAKE_JOINT) if pull < 0.8 else 0.0)
+        act(names.BRAKE_RELEASE_ACTUATOR, 1.0 if pull >= 0.8 else 0.0)
     if v.has_joint(names.WHEEL_JOINTS[0]):
         for i, wheel in enumerate(names.WHEEL_JOINTS):
-            d.actuator(wheel).ctrl[0] = 1.5 * np.sin(2 * np.pi * t / 5.0) + (0.8 if i else -0.8) * np.sin(2 * np.pi * t / 7.0)
-        scenes.place_mocap(m, d, names.PERSON_ROOT_BODY, [4.2 - 0.5 * np.sin(2 * np.pi * t / 8.0), 3.3, 0.0], -150.0)
+            act(wheel, 1.5 * np.sin(2 * np.pi * t / 5.0) + (0.8 if i else -0.8) * np.sin(2 * np.pi * t / 7.0))
+        actuation.place_mocap(m, d, names.PERSON_ROOT_BODY, [4.2 - 0.5 * np.sin(2 * np.pi * t / 8.0), 3.3, 0.0], -150.0)
 
 
 def _requests(c: Coupling, seconds: float) -> None:
@@ -93,7 +95,7 @@ def _measure(name: str, hrtf, steps: int, repeats: int) -> dict:
             _controls(c, k)
             t0 = clock()
             for _ in range(c.n_substeps):
-                mujoco.mj_step(m, d)
+                actuation.step(m, d)
             spent += clock() - t0
             k += 1
         physics.append(spent / steps)

@@ -16,6 +16,7 @@ import numpy as np
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names, scenes
+from acoustic_sim.world.view import SceneView
 
 ROBOT_JOINTS: tuple[str, ...] = (*names.NECK_JOINTS, *names.EYE_JOINTS, *names.arm_joints("left"), *names.arm_joints("right"))
 """Joints of the proprioception and of the first action channels, in this order: neck yaw,
@@ -111,12 +112,13 @@ def action_layout(scene_name: str) -> ActionLayout:
     two wheel speeds); ranges are the actuators' control ranges, the rest pose the robot's
     ``home`` keyframe (read from a freshly loaded scene)."""
     model, data, _ = scenes.load_scene(scene_name)
+    view = SceneView(model, data)
     channels, home = [], {}
     for joint in ROBOT_JOINTS:
         act = model.actuator(joint)
         lo, hi = (float(v) for v in act.ctrlrange)
         channels.append(ActionChannel(_short(joint), joint, lo, hi, "rad"))
-        home[_short(joint)] = float(data.actuator(joint).ctrl[0])
+        home[_short(joint)] = view.control(joint)
     if scene_name == "cabin":
         for side in names.ARM_SIDES:
             channels.append(ActionChannel(f"grasp_{side}", f"grasp:{side}", -1.0, 1.0, "1"))

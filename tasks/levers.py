@@ -5,7 +5,8 @@ motions: for every angle of a lever along its arc (the gearshift for the left ha
 parking brake for the right), the arm joint angles that keep the palm on the handle
 (:func:`lever_motion`, by inverse kinematics once per process). A policy moves a lever by
 commanding :func:`lever_arm_angles`; :func:`hold_lever` puts the hand on its lever at the
-start of an episode.
+start of an episode (through :mod:`acoustic_sim.world.actuation`, whose :func:`settle` is
+re-exported here).
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ import mujoco
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scenes
+from acoustic_sim.world import actuation, names, scenes
+from acoustic_sim.world.actuation import settle
+from acoustic_sim.world.view import WorldView
 
 LEVERS = {"left": (names.GEARSHIFT_JOINT, names.GEARSHIFT_KNOB_SITE), "right": (names.BRAKE_JOINT, names.BRAKE_HANDLE_SITE)}
 """Each hand's lever in the cabin: (hinge joint, handle site)."""
@@ -31,7 +34,7 @@ def lever_motion(side: str, step_deg: float = 0.5, max_deg: float = 50.0) -> tup
     taught its motions): for lever angles 0, ``step_deg``, ... ``max_deg`` (deg from the rest
     angle of the scene's initial state, the gearshift in P and the brake down), the angles of
     the five arm joints that put the palm where it holds the handle, by position inverse
-    kinematics (:func:`acoustic_sim.world.scenes.reach`) on a freshly loaded cabin, each
+    kinematics (:func:`acoustic_sim.world.actuation.reach`) on a freshly loaded cabin, each
     solution warm-started from the previous one. Angles the arm cannot reach end the table.
 
     Returns
@@ -44,19 +47,19 @@ def lever_motion(side: str, step_deg: float = 0.5, max_deg: float = 50.0) -> tup
         raise ConfigError(f"side must be 'left' (gearshift) or 'right' (brake), got {side!r}")
     model, data, _ = scenes.load_scene("cabin")
     joint, site = LEVERS[side]
-    jid = model.joint(joint).id
-    axis, anchor = data.xaxis[jid].copy(), data.xanchor[jid].copy()
-    handle = data.site(site).xpos.copy()
-    qadr = [model.joint(j).qposadr[0] for j in names.arm_joints(side)]
+    view = WorldView(model, data)
+    anchor, axis = view.joint_axis(joint)
+    handle = view.site_position(site)
     angles, rows = [], []
     for deg in np.arange(0.0, max_deg + 1e-9, step_deg):
         r = _rotation(axis, np.deg2rad(deg))
         target = anchor + r @ (handle - anchor)
         try:
-            q = scenes.reach(model, data, side, target, max_error=0.01)
+            q = actuation.reach(model, data, side, target, max_error=0.01)
         except ConfigError:
             break
-        data.qpos[qadr] = q  # warm start for the next angle
+        for arm_joint, angle in zip(names.arm_joints(side), q):  # warm start for the next angle
+            actuation.set_joint_position(model, data, arm_joint, angle)
         angles.append(deg)
         rows.append(q)
     return np.asarray(angles), np.asarray(rows)
@@ -76,23 +79,16 @@ def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
-def settle(model: mujoco.MjModel, data: mujoco.MjData, seconds: float) -> None:
-    """Run physics for ``seconds`` (setting up a start state), then restart the clock at 0."""
-    mujoco.mj_step(model, data, round(seconds / model.opt.timestep))
-    data.time = 0.0
-    mujoco.mj_forward(model, data)
-
-
 def hold_lever(model: mujoco.MjModel, data: mujoco.MjData, side: str) -> None:
     """Start state of a cabin task: the hand on its lever (the taught pose at the lever's
     rest angle), settled, and closed on the handle."""
     arm = lever_arm_angles(side, 0.0)
     for joint, q in zip(names.arm_joints(side), arm):
-        data.joint(joint).qpos[0] = q
-        data.actuator(joint).ctrl[0] = q
-    mujoco.mj_forward(model, data)
+        actuation.set_joint_position(model, data, joint, q)
+        actuation.set_control(model, data, joint, q)
+    actuation.forward(model, data)
     settle(model, data, 0.2)
-    if not scenes.grasp(model, data, side):
+    if not actuation.grasp(model, data, side):
         raise ConfigError(f"the {side} hand could not close on its lever at the start of the episode")
     settle(model, data, 0.1)
 

@@ -9,7 +9,7 @@ from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
 from acoustic_sim.world import names, scenes
 from acoustic_sim.world.coupling import Coupling
 from acoustic_sim.world.events import EventsConfig, SoundEvents
-from acoustic_sim.world.view import GearshiftGeometry
+from acoustic_sim.world.lever_geometry import GearshiftGeometry
 from apps.runner import run_episode
 from policies.deaf import DeafLeverPolicy
 from tasks.reverse_alarm import HIDDEN_VARIATION, ReverseAlarmEnv

@@ -22,7 +22,8 @@ import numpy as np
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.auditory.percept import DirectionEstimate, Percept
 from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, block_length, rotation_zyx, vec_to_sph
-from acoustic_sim.world.view import WorldView
+from acoustic_sim.world import actuation
+from acoustic_sim.world.view import SceneView, WorldView
 
 ASSETS = Path(__file__).resolve().parents[2] / "assets"
 _GL_ERRORS = (mujoco.FatalError, RuntimeError, OSError, ImportError, AttributeError, ctypes.ArgumentError)
@@ -50,6 +51,7 @@ def render_images(model: mujoco.MjModel, n: int, *, width: int = 320, height: in
     no OpenGL backend works here."""
     cam = next((i for i in range(model.ncam) if "eye" in (model.cam(i).name or "")), 0 if model.ncam else -1)
     data = mujoco.MjData(model)
+    view = SceneView(model, data)
     try:
         renderer = mujoco.Renderer(model, height, width)
     except _GL_ERRORS:  # no OpenGL backend here (MUJOCO_GL unset or unusable)
@@ -59,10 +61,9 @@ def render_images(model: mujoco.MjModel, n: int, *, width: int = 320, height: in
     try:
         for k in range(n):
             if yaw is not None:
-                data.qpos[model.jnt_qposadr[yaw]] = 0.8 * np.sin(2 * np.pi * k / max(n, 1))
-            mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera=cam)
-            images.append(renderer.render().copy())
+                actuation.set_joint_position(model, data, yaw, 0.8 * np.sin(2 * np.pi * k / max(n, 1)))
+            actuation.forward(model, data)
+            images.append(view.render(renderer, cam).copy())
     except _GL_ERRORS:
         return None
     finally:
@@ -122,8 +123,8 @@ class SyntheticEpisode:
         self.head_pos = np.array([0.0, 0.0, 1.1])
         body = next((b for b in range(model.nbody) if (model.body(b).name or "").endswith("head")), None)
         if body is not None:
-            mujoco.mj_kinematics(model, self.data)
-            self.head_pos = self.data.xpos[body].copy()
+            actuation.kinematics(model, self.data)
+            self.head_pos = self.view.body_poses()[0][body]
         self.sources = [
             ("dashboard alarm", "reverse_alarm", self.head_pos + [0.8, 0.0, 0.05]),
             ("radio", "human_voice", self.head_pos + [0.6, -0.4, 0.1]),
@@ -139,8 +140,8 @@ class SyntheticEpisode:
         for i, j in enumerate(self.hinges):
             lo, hi = self.model.jnt_range[j] if self.model.jnt_limited[j] else (-0.5, 0.5)
             mid, amp = (lo + hi) / 2, (hi - lo) / 2 * 0.6
-            self.data.qpos[self.model.jnt_qposadr[j]] = mid + amp * np.sin(2 * np.pi * t / (3.0 + 0.37 * i))
-        mujoco.mj_kinematics(self.model, self.data)
+            actuation.set_joint_position(self.model, self.data, j, mid + amp * np.sin(2 * np.pi * t / (3.0 + 0.37 * i)))
+        actuation.kinematics(self.model, self.data)
         yaw = 50.0 * np.sin(2 * np.pi * t / 4.0)
         rot = rotation_zyx(yaw)
         n = block_length(k)

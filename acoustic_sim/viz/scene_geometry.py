@@ -12,8 +12,9 @@ transforms along entity paths, not along MuJoCo's kinematic tree. Geoms carry th
 pose in the body (``geom_pos``/``geom_quat``) and their shape, both static.
 
 Only ``MjModel`` fields are read here; the per-frame poses come in as arrays (what
-``WorldView.body_poses()`` returns: copies of ``xpos``/``xquat``), so this module never
-touches ``MjData``, and nothing is written.
+``WorldView.body_poses()`` returns: copies of ``xpos``/``xquat``), and :func:`default_view`
+reads the reference pose through a :class:`~acoustic_sim.world.view.SceneView`, so this
+module never touches ``MjData``, and nothing is written.
 """
 
 from __future__ import annotations
@@ -23,6 +24,9 @@ import dataclasses
 import mujoco
 import numpy as np
 import rerun as rr
+
+from acoustic_sim.world import actuation
+from acoustic_sim.world.view import SceneView
 
 _GT = mujoco.mjtGeom
 _DEFAULT_RGBA = np.array([0.5, 0.5, 0.5, 1.0], dtype=np.float32)
@@ -263,15 +267,15 @@ def default_view(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     head, its arrows and the direction sphere are in front; without a head, at the centre of
     the geoms from outside their bounding box.
     """
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
+    at_rest = SceneView(model, actuation.reference_pose(model))
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)]
     head = next((b for b, n in enumerate(names) if n == "head" or n.endswith("/head")), None)
     if head is not None:
-        h = np.array(data.xpos[head])
+        h = at_rest.body_poses()[0][head]
         return h + np.array([0.35, 0.0, -0.15]), h + np.array([-1.1, 1.0, 0.75])
     if model.ngeom:
-        lo, hi = data.geom_xpos.min(axis=0), data.geom_xpos.max(axis=0)
+        geoms = at_rest.geom_positions()
+        lo, hi = geoms.min(axis=0), geoms.max(axis=0)
         c = (lo + hi) / 2
         r = max(float(np.linalg.norm(hi - lo)), 1.0)
         return c, c + r * np.array([-0.8, 0.6, 0.5])

@@ -4,15 +4,18 @@ Modules
 -------
 names
     The full names of the MuJoCo elements the code relies on (the assets' contract).
-scene
+scenes, scene_room
     Scenes composed with ``mujoco.MjSpec`` from ``assets/``: :func:`build_scene`,
-    :func:`load_scene`, the acoustic room of a scene (:func:`acoustic_room`), and acting on
-    it (:func:`grasp`, :func:`release`, :func:`reach`, :func:`place_mocap`).
+    :func:`load_scene`; the acoustic room of a scene (:func:`acoustic_room`, :func:`room_frame`).
+actuation
+    The one writer of ``MjData``: physics steps, the home pose, joints and servos, the hands
+    (:func:`grasp`, :func:`release`, :func:`reach`), the mocap bodies (:func:`place_mocap`).
 snapshot
     A PNG of a scene from MuJoCo's offscreen renderer.
-view, events, coupling, egonoise
-    Named read-only accessors over ``MjData``; sound events from physics; the once-per-
-    control-step hand-off to the acoustic world; the motors' ego-noise.
+view, lever_geometry, events, coupling, egonoise
+    Named read-only accessors over ``MjData`` (the one reader); the levers' detents and
+    ratchet; sound events from physics; the once-per-control-step hand-off to the acoustic
+    world; the motors' ego-noise.
 soundscape
     Sounds scheduled anywhere in the room (the one owner of their renderer sources) and the
     ground truth of what is sounding; :class:`acoustic_sim.loop.HearingLoop` drives it.
@@ -28,9 +31,10 @@ from __future__ import annotations
 import importlib
 
 _LAZY = {
-    name: "acoustic_sim.world.scenes"
-    for name in ("SCENES", "CabinConfig", "RoomConfig", "SceneInfo", "build_scene", "load_scene", "acoustic_room",
-                 "room_frame", "to_room", "grasp", "release", "is_grasping", "reach", "place_mocap")
+    **{name: "acoustic_sim.world.scenes" for name in ("SCENES", "CabinConfig", "RoomConfig", "SceneInfo", "build_scene",
+                                                      "load_scene")},
+    **{name: "acoustic_sim.world.scene_room" for name in ("acoustic_room", "room_frame", "to_room")},
+    **{name: "acoustic_sim.world.actuation" for name in ("grasp", "release", "is_grasping", "reach", "place_mocap")},
 }
 
 __all__ = [

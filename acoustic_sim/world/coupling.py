@@ -9,110 +9,43 @@ source poses from the view, expresses them in the acoustic room's frame and hand
 the renderer. :meth:`Coupling.render` then mixes the events' sounds into their emitters
 and renders the block; :meth:`Coupling.step` does both.
 
-Room frame. The renderer's rooms have their origin at a corner (x from 0 to L, ...). The
-acoustic room is the scene's box-typed air-volume site (``car/interior`` or
-``room_interior``): its corner at the box's (-x, -y, -z) extreme, its axes the box's. The
-renderer's :class:`~acoustic_sim.acoustics.room.Room` must have the box's dimensions (the
-scene builds it from the same site, so the two never disagree; this is checked).
+Room frame. The acoustic room is the scene's box-typed air-volume site (``car/interior`` or
+``room_interior``), with the renderer's origin at its (-x, -y, -z) corner and its axes
+(:class:`~acoustic_sim.world.room_box.RoomFrame`). The renderer's
+:class:`~acoustic_sim.acoustics.room.Room` must have the box's dimensions (the scene builds
+it from the same site, so the two never disagree; this is checked).
 
 Emitters. Every emitter (:data:`~acoustic_sim.world.events.EMITTERS`) that has sounded is one
-renderer source, created at its first event and removed after it has been silent for
-``idle_release_s`` plus the room's reverberation. Its signal is a short ring buffer, played
-in a loop, that :meth:`render` fills with the emitter's sounds for exactly the samples of
-the block about to be rendered: events therefore start (and the alarm stops) on their own
-sample, several sounds of one emitter overlap, and adding a sound never costs a new source
-(which takes tens of milliseconds to set up). The ring holds pressure at 1 m in pascal (the
-source's level is 1 Pa for a unit sample), so each sound carries its own level.
+renderer source fed through a ring buffer, which :meth:`render` fills for exactly the samples
+of the block about to be rendered (:mod:`acoustic_sim.world.emitter_rings`).
 
 Outside emitters (the car horn) play by :meth:`Coupling.through_body`, the one law for sounds
 from beyond the walls (a task's other vehicle follows it too, through
-:class:`~acoustic_sim.world.soundscape.Soundscape`): from where the straight line from their site to the
-head enters the room, ``outside_margin_m`` inside the walls (just inside the windscreen;
-:meth:`RoomFrame.entry_point`), at their level minus the body's transmission loss and minus
-the spreading from the site to that point, ``20 log10(max(d, 1 m) / 1 m)`` dB: the body
-re-radiates what reaches it, less what it stops, and of all the paths through it the
-straight one arrives first, so the first wavefront, from which a listener takes a sound's
-direction, comes from the site's own direction. (Until 2026-12-04 they played from the
-point of the room nearest to the site: a source 2-6 m beside the cabin and 0.5-1 m ahead of
-the head then came in through the window next to the head, 19-35 deg from straight ahead
-instead of 68-86 deg, though its path that way is 0.2-0.5 m, 0.7-1.5 ms, longer.)
+:class:`~acoustic_sim.world.soundscape.Soundscape`): just inside the walls where the straight
+line from their site to the head enters the room. History: docs/notes/outside_sounds.md.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import mujoco
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, P_REF, SAMPLE_RATE, db_spl_to_pa, frame_end_sample
-from acoustic_sim.world import names
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, frame_end_sample
+from acoustic_sim.world import actuation, names
 from acoustic_sim.world.egonoise import EgoNoiseConfig, MotorEgoNoise
+from acoustic_sim.world.emitter_rings import EmitterRing, release_samples
 from acoustic_sim.world.events import EMITTERS, EventsConfig, SoundEvent, SoundEvents
 from acoustic_sim.world.room_box import RoomFrame
 from acoustic_sim.world.view import WorldView
-
-RING = 8192
-"""Samples in an emitter's ring buffer (more than any control block, 4096 at most)."""
-
-UNIT_LEVEL_DB = float(20.0 * np.log10(1.0 / P_REF))
-"""Source level (dB SPL at 1 m) at which a unit sample is 1 Pa at 1 m."""
 
 HEAD_POSITION_TOL = 1e-4
 """Head moves (m, per coordinate) below this are not sent to the renderer."""
 
 HEAD_ROTATION_TOL = 1e-4
 """Head turns (rotation-matrix entries, about rad) below this are not sent to the renderer."""
-
-STOP_FADE_S = 0.005
-"""A looping sound fades out over this time (s) from its stop sample (a switched-off beeper)."""
-
-
-@dataclasses.dataclass
-class _Sound:
-    """One sound of an emitter: pressure at 1 m (Pa) = gain * signal."""
-
-    signal: np.ndarray
-    start: int
-    gain: float
-    loop: bool
-    fade: int  # samples of the fade-out after a loop's stop
-    stop: int | None = None
-
-    def end(self) -> float:
-        """First sample after the sound (inf while a loop runs)."""
-        if self.loop:
-            return np.inf if self.stop is None else self.stop + self.fade
-        return self.start + self.signal.size
-
-    def write(self, out: np.ndarray, b0: int) -> None:
-        """Add the sound's samples for ``b0 .. b0 + out.size`` into ``out``."""
-        t = np.arange(b0, b0 + out.size)
-        idx = t - self.start
-        valid = idx >= 0
-        if self.loop:
-            x = self.signal[np.mod(idx, self.signal.size)]
-            if self.stop is not None:
-                fade = np.clip(1.0 - (t - self.stop) / self.fade, 0.0, 1.0)
-                x = x * (0.5 - 0.5 * np.cos(np.pi * fade))
-        else:
-            valid &= idx < self.signal.size
-            x = self.signal[np.clip(idx, 0, self.signal.size - 1)]
-        out += np.where(valid, x, 0.0) * self.gain
-
-
-@dataclasses.dataclass
-class _EmitterState:
-    name: str
-    anchor: str
-    outside: bool
-    sounds: list = dataclasses.field(default_factory=list)
-    ring: np.ndarray | None = None  # the renderer source's signal (None: no source)
-    ring_start: int = 0
-    position: np.ndarray | None = None  # room frame, as last given to the renderer
-    silent_from: float = 0.0  # sample from which the emitter has nothing left to play
 
 
 class Coupling:
@@ -166,7 +99,7 @@ class Coupling:
     ) -> None:
         self.model, self._data = model, data
         self.view = WorldView(model, data)
-        mujoco.mj_forward(model, data)  # poses of a fresh MjData are not computed yet
+        actuation.forward(model, data)  # poses of a fresh MjData are not computed yet
         self.renderer = renderer
         self.sample_rate = renderer.sample_rate if renderer is not None else SAMPLE_RATE
         dt = float(model.opt.timestep)
@@ -192,7 +125,6 @@ class Coupling:
             )
         self.interior_site = interior_site
         self.frame = RoomFrame.from_box(*self.view.site_box(interior_site))
-        linger = 0.0
         if renderer is not None:
             room = renderer.room
             if room.anechoic or not np.allclose(room.dimensions, self.frame.dimensions, atol=1e-3):
@@ -202,8 +134,7 @@ class Coupling:
                 )
             if renderer.sample != frame_end_sample(renderer.frame, renderer.sample_rate):
                 raise ConfigError(f"the renderer's clock (sample {renderer.sample}) is not at a frame boundary")
-            linger = float(np.max(room.rt60_bands(), initial=0.0)) * 65.0 / 60.0 + 0.05
-        self._release_samples = round((idle_release_s + linger) * self.sample_rate)
+        self._release_samples = release_samples(idle_release_s, renderer.room if renderer is not None else None, self.sample_rate)
         self.frame_index = renderer.frame if renderer is not None else 0
 
         self.events = SoundEvents.from_view(self.view, rng, events_config, sample_rate=self.sample_rate)
@@ -211,7 +142,7 @@ class Coupling:
         if self.ego_noise is not None and self.ego_noise.actuator_indices is None:
             raise ConfigError("the renderer's MotorEgoNoise must be built with MotorEgoNoise.from_view for this world")
         self._emitters = {
-            e.name: _EmitterState(e.name, e.anchor, e.outside) for e in EMITTERS.values() if e.name in self.events.emitters
+            e.name: EmitterRing(e.name, e.anchor, e.outside) for e in EMITTERS.values() if e.name in self.events.emitters
         }
         self._gear_trace = [0.0] * self.n_substeps  # mechanism angles (rad) after each physics step
         self._brake_trace = [0.0] * self.n_substeps
@@ -285,7 +216,7 @@ class Coupling:
 
     @property
     def data(self) -> mujoco.MjData:
-        """The simulation state (write controls here; read it through :attr:`view`)."""
+        """The simulation state (write it through :mod:`acoustic_sim.world.actuation`; read it through :attr:`view`)."""
         return self._data
 
     # -- clock ----------------------------------------------------------------------------------
@@ -316,7 +247,7 @@ class Coupling:
         are re-read without events, requests and sounding emitters are dropped.
 
         Runs ``mj_forward`` first, so that poses and actuator forces match the state."""
-        mujoco.mj_forward(self.model, self._data)
+        actuation.forward(self.model, self._data)
         v = self.view
         self.events.reset(
             sample=self.block_start,
@@ -325,8 +256,7 @@ class Coupling:
             pawl_angle=v.pawl_angle() if v.ratchet_geometry is not None else None,
         )
         for e in self._emitters.values():
-            e.sounds.clear()
-            e.silent_from = self.block_start
+            e.silence(self.block_start)
         self._sync_poses()
 
     # -- stepping -------------------------------------------------------------------------------
@@ -339,11 +269,12 @@ class Coupling:
             The events that start (or stop) in this step's block.
         """
         m, d, v = self.model, self._data, self.view
-        self._drop_finished(self.block_start)
+        for e in self._emitters.values():
+            e.drop_finished(self.block_start)
         gear = v.gearshift_geometry is not None
         brake = v.ratchet_geometry is not None
         for j in range(self.n_substeps):
-            mujoco.mj_step(m, d)
+            actuation.step(m, d)
             if gear:
                 self._gear_trace[j] = v.gearshift_angle()
             if brake:
@@ -376,19 +307,7 @@ class Coupling:
                 f"render() must follow one advance(): the renderer is at frame {r.frame}, the world at {self.frame_index}"
             )
         for e in self._emitters.values():
-            live = bool(e.sounds) or b0 < e.silent_from + self._release_samples
-            if e.ring is None and e.sounds:
-                self._open(e, b0)
-            elif e.ring is not None and not live:
-                r.remove_source(e.name)
-                e.ring = None
-            if e.ring is None:
-                continue
-            block = np.zeros(b1 - b0)
-            for s in e.sounds:
-                s.write(block, b0)
-            idx = np.mod(np.arange(b0, b1) - e.ring_start, RING)
-            e.ring[idx] = block
+            e.feed(r, b0, b1, self._release_samples)
         return r.render_block(b1 - b0)
 
     def step(self) -> np.ndarray:
@@ -400,13 +319,16 @@ class Coupling:
     def through_body(self, point_room, level_db: float, *, margin: float | None = None) -> tuple[np.ndarray, float]:
         """Where and how loud a source outside the acoustic room plays inside it: the one
         law for sounds from beyond the walls (the car horn here, a task's other vehicle
-        through :class:`~acoustic_sim.world.soundscape.Soundscape`; module docstring).
+        through :class:`~acoustic_sim.world.soundscape.Soundscape`).
 
-        From the point ``margin`` inside the walls where the straight line from
-        ``point_room`` to the head (:attr:`head_position`, now) enters the room
-        (:meth:`RoomFrame.entry_point`), at ``level_db`` minus the body's transmission loss
-        (``events.config.transmission_loss_db``) and minus the spreading
-        ``20 log10(max(d, 1 m))`` from the source to that point.
+        From the point ``margin`` inside the walls (just inside the windscreen) where the
+        straight line from ``point_room`` to the head (:attr:`head_position`, now) enters
+        the room (:meth:`RoomFrame.entry_point`), at ``level_db`` minus the body's
+        transmission loss (``events.config.transmission_loss_db``) and minus the spreading
+        ``20 log10(max(d, 1 m) / 1 m)`` dB from the source to that point: the body
+        re-radiates what reaches it, less what it stops, and of all the paths through it the
+        straight one arrives first, so the first wavefront, from which a listener takes a
+        sound's direction, comes from the source's own direction.
 
         Parameters
         ----------
@@ -433,30 +355,11 @@ class Coupling:
     def _apply(self, ev: SoundEvent) -> None:
         e = self._emitters[ev.source]
         if ev.kind == "alarm_stop":
-            for s in e.sounds:
-                if s.loop and s.stop is None:
-                    s.stop = ev.sample
+            e.stop_loops(ev.sample)
             return
-        level = ev.level_db + (self._anchor(e)[1] if e.outside else 0.0)
-        fade = int(np.ceil(STOP_FADE_S * self.sample_rate))
-        e.sounds.append(_Sound(ev.signal, ev.sample, float(db_spl_to_pa(level)), ev.loop, fade))
-        e.silent_from = np.inf
+        e.play(ev.signal, ev.sample, ev.level_db + (self._anchor(e)[1] if e.outside else 0.0), ev.loop, self.sample_rate)
 
-    def _drop_finished(self, now: int) -> None:
-        for e in self._emitters.values():
-            if e.sounds:
-                e.sounds = [s for s in e.sounds if s.end() > now]
-                if not e.sounds:
-                    e.silent_from = now
-
-    def _open(self, e: _EmitterState, b0: int) -> None:
-        e.ring = np.zeros(RING)
-        e.ring_start = b0
-        src = self.renderer.add_source(e.name, e.ring, e.position, level_db=UNIT_LEVEL_DB, start=b0, loop=True)
-        if src.signal is not e.ring:
-            raise ConfigError("the renderer copied an emitter's ring buffer; the coupling needs it to keep the array it is given")
-
-    def _anchor(self, e: _EmitterState) -> tuple[np.ndarray, float]:
+    def _anchor(self, e: EmitterRing) -> tuple[np.ndarray, float]:
         """Room-frame position (m) an emitter plays from and its level change (dB): for
         outside emitters, :meth:`through_body` (its level change: the law applied to 0 dB)."""
         p = self.frame.to_room(self.view.site_position(e.anchor))
@@ -483,11 +386,7 @@ class Coupling:
         for e in self._emitters.values():
             if not e.sounds and e.ring is None and e.position is not None:
                 continue  # idle and not in the renderer: nothing to keep up to date
-            p = self._anchor(e)[0]
-            if e.position is None or np.linalg.norm(p - e.position) > self.move_threshold_m:
-                e.position = p
-                if r is not None and e.ring is not None:
-                    r.move_source(e.name, p)
+            e.follow(self._anchor(e)[0], self.move_threshold_m, r)
 
     # -- inspection -----------------------------------------------------------------------------
     def source_positions(self) -> dict[str, np.ndarray]:

@@ -20,7 +20,9 @@ No XML string is edited.
 The acoustic room of a scene is derived from its box-typed air-volume site by
 :func:`acoustic_room` (corner at the box's -x, -y, -z extreme, axes the box's), with the
 materials of the matching preset of :mod:`acoustic_sim.acoustics.room`, so the MuJoCo
-geometry and the acoustics never disagree.
+geometry and the acoustics never disagree (:mod:`acoustic_sim.world.scene_room`). Acting on
+a scene (:func:`grasp`, :func:`release`, :func:`is_grasping`, :func:`reach`,
+:func:`place_mocap`) is :mod:`acoustic_sim.world.actuation`'s; both are re-exported here.
 
 Mechanisms are pure MJCF physics and need no per-step Python: the gearshift's detents are a
 spring-loaded roller between bumps, the brake's ratchet a sprung pawl over pins (see
@@ -35,10 +37,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from acoustic_sim.acoustics.room import WALLS, Room, eyring_absorption, room_preset
+from acoustic_sim.acoustics.room import Room
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names
-from acoustic_sim.world.room_box import RoomFrame
+from acoustic_sim.world.actuation import grasp, home_pose, is_grasping, place_mocap, reach, release, yaw_quaternion
+from acoustic_sim.world.scene_room import ROOM_PRESETS, acoustic_room, room_frame, to_room
 
 ASSET_DIR = Path(__file__).resolve().parents[2] / "assets"
 """The repository's ``assets/`` folder (one menagerie-style folder per object)."""
@@ -48,9 +51,6 @@ SCENES = ("cabin", "room")
 
 TIMESTEP = 0.002
 """Physics timestep (s): 8 steps per 16 ms control step."""
-
-ROOM_PRESETS = {names.CABIN_INTERIOR_SITE: "car_cabin", names.ROOM_INTERIOR_SITE: "lab"}
-"""Acoustic preset whose materials each air-volume site takes (acoustics.room.room_preset)."""
 
 DRIVING_KNEE_DEG = -55.0
 """Rotation (deg, about the thigh's y axis) of the shins in the driver's seat: feet forward
@@ -167,11 +167,6 @@ def _asset(folder: str, file: str) -> mujoco.MjSpec:
     return spec
 
 
-def _yaw_quat(yaw_deg: float) -> list[float]:
-    half = np.deg2rad(yaw_deg) / 2.0
-    return [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))]
-
-
 def _set_physics(spec: mujoco.MjSpec) -> None:
     spec.option.timestep = TIMESTEP
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
@@ -265,7 +260,7 @@ def _build_room(config: RoomConfig) -> mujoco.MjSpec:
                         for i, b in enumerate(config.bystanders))
     for field, xy, yaw, folder, file, prefix in placements:
         _check_floor_point(interior, field, xy)
-        frame = spec.worldbody.add_frame(pos=[float(xy[0]), float(xy[1]), 0.0], quat=_yaw_quat(yaw))
+        frame = spec.worldbody.add_frame(pos=[float(xy[0]), float(xy[1]), 0.0], quat=yaw_quaternion(yaw))
         spec.attach(_asset(folder, file), prefix=prefix, frame=frame)
     spec.attach(_asset("musashi_head", "musashi_head.xml"), prefix=names.ROBOT, site=spec.site(names.WHEELCHAIR_SEAT_SITE))
     return spec
@@ -326,245 +321,19 @@ def load_scene(name: str, *, config: CabinConfig | RoomConfig | None = None) -> 
     spec = build_scene(name, config=config)
     model = spec.compile()
     data = mujoco.MjData(model)
-    key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, names.ROBOT + "home")
-    # Only the robot's coordinates and controls come from its keyframe: everything else keeps
-    # its reference pose (the wheelchair where it was placed) and the mocap bodies stay put.
-    robot_joints = [j for j in range(model.njnt) if (model.joint(j).name or "").startswith(names.ROBOT)]
-    for j in robot_joints:
-        adr = model.jnt_qposadr[j]
-        data.qpos[adr] = model.key_qpos[key, adr]
-    robot_actuators = [a for a in range(model.nu) if (model.actuator(a).name or "").startswith(names.ROBOT)]
-    data.ctrl[robot_actuators] = model.key_ctrl[key, robot_actuators]
     used = config or (CabinConfig() if name == "cabin" else RoomConfig())
+    levers = {}
     if name == "cabin":
         # The asset's own numerics say where the detents and teeth are.
-        data.joint(names.GEARSHIFT_JOINT).qpos[0] = _numeric(model, names.GEAR_DETENTS_NUMERIC)[names.GEAR_NAMES.index(used.gear)]
+        levers[names.GEARSHIFT_JOINT] = _numeric(model, names.GEAR_DETENTS_NUMERIC)[names.GEAR_NAMES.index(used.gear)]
         if used.brake_tooth:
-            data.joint(names.BRAKE_JOINT).qpos[0] = _numeric(model, names.BRAKE_TEETH_NUMERIC)[used.brake_tooth - 1]
-    mujoco.mj_forward(model, data)
+            levers[names.BRAKE_JOINT] = _numeric(model, names.BRAKE_TEETH_NUMERIC)[used.brake_tooth - 1]
+    home_pose(model, data, levers)
     return model, data, SceneInfo(name=name, config=used, room=acoustic_room(model))
 
 
-# -- the acoustic room ----------------------------------------------------------------------------
-
-
-def _interior_site(model: mujoco.MjModel) -> str:
-    for site in ROOM_PRESETS:
-        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site) >= 0:
-            return site
-    raise ConfigError(f"the model has no air-volume site ({' or '.join(map(repr, ROOM_PRESETS))}): not a composed scene")
-
-
-def room_frame(model: mujoco.MjModel, site: str | None = None) -> RoomFrame:
-    """The :class:`~acoustic_sim.world.room_box.RoomFrame` of the air volume (the box site's
-    (-x, -y, -z) corner, the box's axes), as the coupling has it. The site is read at the
-    model's reference pose (``qpos0``), where it is wherever the scene placed it.
-
-    Raises
-    ------
-    ConfigError
-        If the site is missing or not box-typed.
-    """
-    site = _interior_site(model) if site is None else site
-    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
-    if sid < 0:
-        raise ConfigError(f"the model has no site {site!r}")
-    if int(model.site_type[sid]) != int(mujoco.mjtGeom.mjGEOM_BOX):
-        raise ConfigError(f"site {site!r} must be box-typed (it describes an air volume)")
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    return RoomFrame.from_box(data.site_xpos[sid], data.site_xmat[sid].reshape(3, 3), model.site_size[sid])
-
-
-def to_room(model: mujoco.MjModel, points_world, site: str | None = None) -> np.ndarray:
-    """Express world points (..., 3) in the acoustic room's frame (m)."""
-    return room_frame(model, site).to_room(points_world)
-
-
-def acoustic_room(model: mujoco.MjModel) -> Room:
-    """The acoustic :class:`~acoustic_sim.acoustics.room.Room` of a composed scene.
-
-    Dimensions come from the scene's box-typed air-volume site (``car/interior`` or
-    ``room_interior``); materials, background noise and image-source order from the matching
-    preset of :data:`ROOM_PRESETS` (``car_cabin``: its wall materials; ``lab``: the uniform
-    absorption that gives the preset's RT60 in this volume, by Eyring's formula); the
-    listener is the midpoint of the robot's ear sites at the reference pose, in room
-    coordinates.
-
-    Raises
-    ------
-    ConfigError
-        If the model has no air-volume site or no robot ear sites, or the head is outside
-        the air volume.
-    """
-    site = _interior_site(model)
-    preset = room_preset(ROOM_PRESETS[site])
-    dims = room_frame(model, site).dimensions
-    data = mujoco.MjData(model)
-    mujoco.mj_kinematics(model, data)
-    try:
-        ears = np.stack([data.site(names.EAR_LEFT_SITE).xpos, data.site(names.EAR_RIGHT_SITE).xpos])
-    except KeyError:
-        raise ConfigError(f"the model has no robot ear sites {names.EAR_LEFT_SITE!r}, {names.EAR_RIGHT_SITE!r}") from None
-    listener = to_room(model, ears.mean(axis=0), site)
-    absorption = preset.absorption
-    if preset.target_rt60_s is not None:
-        a = eyring_absorption(preset.target_rt60_s, dims)
-        absorption = {w: (a,) for w in WALLS}
-    return dataclasses.replace(preset, dimensions=tuple(float(v) for v in dims), absorption=absorption,
-                               listener=tuple(float(v) for v in listener))
-
-
-# -- acting on the scene ---------------------------------------------------------------------------
-
-
-def _side(side: str) -> str:
-    if side not in names.ARM_SIDES:
-        raise ConfigError(f"side must be one of {names.ARM_SIDES}, got {side!r}")
-    return side
-
-
-def _grasp_id(model: mujoco.MjModel, side: str) -> int:
-    eq = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_EQUALITY, names.grasp_equality(_side(side)))
-    if eq < 0:
-        raise ConfigError(f"this scene has no grasp {names.grasp_equality(side)!r} (only the cabin has levers to hold)")
-    return eq
-
-
-def grasp(model: mujoco.MjModel, data: mujoco.MjData, side: str, *, max_distance: float = 0.05) -> bool:
-    """Close a hand on its lever: pin the palm to the point of the lever where it is now.
-
-    The grip is a ball joint (a ``connect`` equality) between the palm site and the lever,
-    anchored where the palm is, so grasping moves nothing; from then on the lever's handle
-    follows the palm (and resists it through its detents or ratchet) while turning freely
-    in the hand, as a gear knob turns in a loose fist.
-
-    Parameters
-    ----------
-    side : str
-        ``left`` (gearshift) or ``right`` (brake lever).
-    max_distance : float
-        The palm site must be this close (m) to the lever's handle site, > 0.
-
-    Returns
-    -------
-    bool
-        True if the hand now holds the lever; False if the handle was out of reach.
-
-    Raises
-    ------
-    ConfigError
-        If the scene has no such grasp (only ``cabin`` has) or ``side`` is unknown.
-    """
-    eq = _grasp_id(model, side)
-    if not max_distance > 0:
-        raise ConfigError(f"max_distance must be > 0 m, got {max_distance}")
-    mujoco.mj_kinematics(model, data)
-    palm_site = data.site(names.grasp_site(side))
-    handle = data.site(names.GRASP_TARGET_SITES[side]).xpos
-    if np.linalg.norm(palm_site.xpos - handle) > max_distance:
-        return False
-    hand, lever = int(model.eq_obj1id[eq]), int(model.eq_obj2id[eq])
-    palm = palm_site.xpos.copy()
-    # Connect data: the anchor in body1's frame, then the same point in body2's frame.
-    model.eq_data[eq, 0:3] = data.xmat[hand].reshape(3, 3).T @ (palm - data.xpos[hand])
-    model.eq_data[eq, 3:6] = data.xmat[lever].reshape(3, 3).T @ (palm - data.xpos[lever])
-    data.eq_active[eq] = 1
-    return True
-
-
-def release(model: mujoco.MjModel, data: mujoco.MjData, side: str) -> None:
-    """Open a hand: deactivate its grasp equality (a no-op when it holds nothing)."""
-    data.eq_active[_grasp_id(model, side)] = 0
-
-
-def is_grasping(model: mujoco.MjModel, data: mujoco.MjData, side: str) -> bool:
-    """Whether the hand on ``side`` holds its lever."""
-    return bool(data.eq_active[_grasp_id(model, side)])
-
-
-def reach(model: mujoco.MjModel, data: mujoco.MjData, side: str, target, *, max_error: float = 0.01,
-          iterations: int = 200) -> np.ndarray:
-    """Arm joint angles (rad) that put the palm site at ``target``: position inverse kinematics.
-
-    Damped least squares from the arm's current pose over the five joints of
-    :func:`names.arm_joints`, within their ranges; ``data`` is not changed. Use the result as
-    the arm's position targets (``ctrl``).
-
-    Parameters
-    ----------
-    side : str
-        ``left`` or ``right``.
-    target : array_like, shape (3,)
-        Palm position (m, world).
-    max_error : float
-        Largest acceptable distance (m) between the palm and the target.
-    iterations : int
-        Most solver iterations.
-
-    Returns
-    -------
-    numpy.ndarray, shape (5,)
-        Shoulder pitch, roll, yaw, elbow, wrist (rad).
-
-    Raises
-    ------
-    ConfigError
-        If the target is not 3 finite numbers or is out of reach (error above ``max_error``).
-    """
-    target = np.asarray(target, dtype=float)
-    if target.shape != (3,) or not np.all(np.isfinite(target)):
-        raise ConfigError(f"reach target must be 3 finite coordinates in m, got {target!r}")
-    joints = [model.joint(j) for j in names.arm_joints(_side(side))]
-    qadr = np.array([j.qposadr[0] for j in joints])
-    dadr = np.array([j.dofadr[0] for j in joints])
-    lo, hi = np.array([j.range for j in joints]).T
-    site = model.site(names.grasp_site(side)).id
-    scratch = mujoco.MjData(model)
-    scratch.qpos[:] = data.qpos
-    scratch.mocap_pos[:], scratch.mocap_quat[:] = data.mocap_pos, data.mocap_quat
-    jac = np.zeros((3, model.nv))
-    damping = 1e-2
-    for _ in range(iterations):
-        mujoco.mj_kinematics(model, scratch)
-        mujoco.mj_comPos(model, scratch)
-        err = target - scratch.site_xpos[site]
-        if np.linalg.norm(err) < 1e-4:
-            break
-        mujoco.mj_jacSite(model, scratch, jac, None, site)
-        j = jac[:, dadr]
-        dq = j.T @ np.linalg.solve(j @ j.T + damping**2 * np.eye(3), err)
-        scratch.qpos[qadr] = np.clip(scratch.qpos[qadr] + dq, lo, hi)
-    mujoco.mj_kinematics(model, scratch)
-    error = float(np.linalg.norm(target - scratch.site_xpos[site]))
-    if error > max_error:
-        raise ConfigError(f"{side} palm cannot reach {tuple(np.round(target, 3))} m: {error * 100:.1f} cm short")
-    return scratch.qpos[qadr].copy()
-
-
-def place_mocap(model: mujoco.MjModel, data: mujoco.MjData, body: str, position, yaw_deg: float = 0.0) -> None:
-    """Move a mocap body (the person, the loudspeaker) to a floor point, facing ``yaw_deg``.
-
-    Parameters
-    ----------
-    body : str
-        Full body name, e.g. ``names.PERSON_ROOT_BODY`` or ``names.LOUDSPEAKER_BODY``.
-    position : array_like, shape (3,)
-        Body origin (m, world): for both, the floor point under them.
-    yaw_deg : float
-        Facing direction, deg counter-clockwise from +x.
-
-    Raises
-    ------
-    ConfigError
-        If the body does not exist or is not a mocap body, or the pose is not finite.
-    """
-    bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
-    if bid < 0 or model.body_mocapid[bid] < 0:
-        raise ConfigError(f"{body!r} is not a mocap body of this scene")
-    p = np.asarray(position, dtype=float)
-    if p.shape != (3,) or not np.all(np.isfinite(p)) or not np.isfinite(yaw_deg):
-        raise ConfigError(f"mocap pose must be 3 finite coordinates (m) and a finite yaw (deg), got {position!r}, {yaw_deg!r}")
-    m = model.body_mocapid[bid]
-    data.mocap_pos[m] = p
-    data.mocap_quat[m] = _yaw_quat(yaw_deg)
+__all__ = [
+    "ASSET_DIR", "DRIVING_KNEE_DEG", "GEAR_BUMP_FRAME_OFFSET_DEG", "REVERSE_DEG_RANGE", "ROOM_PRESETS", "SCENES", "TIMESTEP",
+    "CabinConfig", "RoomConfig", "SceneInfo", "acoustic_room", "build_scene", "grasp", "is_grasping", "load_scene",
+    "place_mocap", "reach", "release", "room_frame", "to_room",
+]

@@ -69,17 +69,16 @@ HIDDEN_GEOM_GROUP = 1
 
 def _hands_on_levers(model, data) -> None:
     """Pose the arms with the palms on the gear knob and the brake handle (for the picture)."""
-    import mujoco
+    from acoustic_sim.world import actuation, names
+    from acoustic_sim.world.view import SceneView
 
-    from acoustic_sim.world import names
-    from acoustic_sim.world.scenes import reach
-
+    view = SceneView(model, data)
     for side in names.ARM_SIDES:
-        angles = reach(model, data, side, data.site(names.GRASP_TARGET_SITES[side]).xpos)
+        angles = actuation.reach(model, data, side, view.site_position(names.GRASP_TARGET_SITES[side]))
         for joint, angle in zip(names.arm_joints(side), angles):
-            data.joint(joint).qpos[0] = angle
-            data.actuator(joint).ctrl[0] = angle
-    mujoco.mj_forward(model, data)
+            actuation.set_joint_position(model, data, joint, angle)
+            actuation.set_control(model, data, joint, angle)
+    actuation.forward(model, data)
 
 
 def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Path:
@@ -127,6 +126,7 @@ def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Pat
     from PIL import Image
 
     from acoustic_sim.world.scenes import load_scene
+    from acoustic_sim.world.view import SceneView
 
     model, data, _ = load_scene(scene)
     if scene == "cabin":
@@ -150,8 +150,7 @@ def snapshot(scene: str, out: Path, width: int = 1280, height: int = 800) -> Pat
             "or libosmesa6 (.ci/run does), or set MUJOCO_GL=egl or osmesa"
         ) from err
     with renderer:
-        renderer.update_scene(data, camera, scene_option=options)
-        pixels = renderer.render()
+        pixels = SceneView(model, data).render(renderer, camera, scene_option=options)
     with atomic_path(out) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")
     return out

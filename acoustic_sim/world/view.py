@@ -4,23 +4,25 @@ In the dm_control manner, tasks, events and the coupling ask the view questions 
 (``ear_poses()``, ``gearshift_position()``, ``brake_teeth_engaged()``) and never index
 MuJoCo's arrays themselves; elements are found by the full names of
 :mod:`acoustic_sim.world.names`, so assets can be rebuilt without touching their readers.
-Every array returned is a copy: a caller cannot write into the simulation through it.
+Every array returned is a copy: a caller cannot write into the simulation through it. The
+one writer is :mod:`acoustic_sim.world.actuation` (``tests/test_world_access.py`` holds
+every other module to that).
+
+:class:`SceneView` reads any model (sites, bodies, joints, cameras, controls, rays, the
+renderer's picture); :class:`WorldView` adds the robot's head and ears, the cabin's levers
+and the actuators, and needs a composed scene.
 
 Frames: world is MuJoCo's (z up, metres, radians for joints). The head frame is the
 renderer's (x forward, y toward the left ear, z up) and is derived from the ear sites.
 
-The mechanisms' geometry (detent angles, ratchet teeth) is part of the assets: the cabin
-model carries it as MuJoCo custom numerics (:data:`names.GEAR_DETENTS_NUMERIC`,
-:data:`names.BRAKE_TEETH_NUMERIC`), read here into :class:`GearshiftGeometry` and
-:class:`RatchetGeometry`, which are pure functions of joint angles (the event trackers use
-them on angle traces, without MuJoCo).
+The levers' geometry (detent angles, ratchet teeth) is read from the cabin model's custom
+numerics into :class:`~acoustic_sim.world.lever_geometry.GearshiftGeometry` and
+:class:`~acoustic_sim.world.lever_geometry.RatchetGeometry` (re-exported here).
 """
 
 from __future__ import annotations
 
-import bisect
 import dataclasses
-import functools
 import math
 
 import mujoco
@@ -28,137 +30,7 @@ import numpy as np
 
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.world import names
-
-# -- mechanism geometry (pure) ---------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True, kw_only=True)
-class GearshiftGeometry:
-    """Detent positions of the gearshift hinge.
-
-    Parameters
-    ----------
-    detents_rad : tuple of float
-        Joint angle (rad) of each detent, strictly increasing, in the order of ``names``.
-    names : tuple of str
-        Gear names, default P, R, N, D.
-    capture_fraction : float
-        The lever is *in* a detent when it is closer to it than this fraction of the
-        distance to the nearest neighbouring detent; 0 < capture < release.
-    release_fraction : float
-        Once in a detent, the lever stays in it until it is farther than this fraction
-        (hysteresis, so a lever resting at the capture edge does not chatter); < 0.5, so
-        the release zones of neighbours never overlap.
-    """
-
-    detents_rad: tuple[float, ...]
-    names: tuple[str, ...] = names.GEAR_NAMES
-    capture_fraction: float = 0.3
-    release_fraction: float = 0.45
-
-    def __post_init__(self) -> None:
-        d = np.asarray(self.detents_rad, dtype=float)
-        if d.ndim != 1 or d.size < 2 or d.size != len(self.names) or not np.all(np.isfinite(d)) or np.any(np.diff(d) <= 0):
-            raise ConfigError(
-                f"gearshift detents must be {len(self.names)} strictly increasing finite angles (rad) for gears "
-                f"{self.names}, got {self.detents_rad}"
-            )
-        if not 0.0 < self.capture_fraction < self.release_fraction < 0.5:
-            raise ConfigError(
-                f"gearshift capture/release fractions must satisfy 0 < capture < release < 0.5, got "
-                f"{self.capture_fraction} and {self.release_fraction}"
-            )
-
-    @property
-    def spacing(self) -> np.ndarray:
-        """Distance (rad) from each detent to its nearest neighbour, shape (G,)."""
-        gaps = np.diff(np.asarray(self.detents_rad, dtype=float))
-        return np.minimum(np.r_[gaps[0], gaps], np.r_[gaps, gaps[-1]])
-
-    @property
-    def capture_rad(self) -> np.ndarray:
-        """Capture half-width (rad) of each detent, shape (G,)."""
-        return self.capture_fraction * self.spacing
-
-    @property
-    def release_rad(self) -> np.ndarray:
-        """Release half-width (rad) of each detent, shape (G,)."""
-        return self.release_fraction * self.spacing
-
-    def position(self, angle: float) -> str | None:
-        """The gear whose capture zone holds ``angle`` (rad), or ``None`` between detents."""
-        d = np.asarray(self.detents_rad)
-        i = int(np.argmin(np.abs(d - angle)))
-        return self.names[i] if abs(d[i] - angle) < self.capture_rad[i] else None
-
-    def angle(self, name: str) -> float:
-        """Detent angle (rad) of gear ``name``."""
-        if name not in self.names:
-            raise ConfigError(f"unknown gear {name!r}; gears: {self.names}")
-        return float(self.detents_rad[self.names.index(name)])
-
-
-@dataclasses.dataclass(frozen=True, kw_only=True)
-class RatchetGeometry:
-    """The parking brake's ratchet: pins on the lever's sector pass under a sprung pawl.
-
-    Pulling the lever up, each pin lifts the pawl and passes; the pawl snaps back behind
-    it (the click) and then holds the lever on that pin when the hand lets go.
-
-    Parameters
-    ----------
-    teeth_rad : tuple of float
-        Lever angle (rad) at which it rests on tooth ``k`` (held by the pawl), k = 1..n,
-        strictly increasing.
-    rest_tolerance_fraction : float
-        A lever this fraction of the smallest tooth pitch below a tooth's rest angle still
-        rests on it (contacts are soft), 0-0.5.
-    pawl_lift_rad : float
-        The pawl counts as lifted by a passing pin above this angle (rad).
-    pawl_drop_rad : float
-        A lifted pawl falling below this angle (rad) has snapped back: a click;
-        0 <= drop < lift.
-    """
-
-    teeth_rad: tuple[float, ...]
-    rest_tolerance_fraction: float = 0.25
-    pawl_lift_rad: float = float(np.deg2rad(4.0))
-    pawl_drop_rad: float = float(np.deg2rad(1.5))
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.teeth_rad, dtype=float)
-        if t.ndim != 1 or t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-            raise ConfigError(f"ratchet teeth must be one or more strictly increasing finite angles (rad), got {self.teeth_rad}")
-        if not 0.0 <= self.rest_tolerance_fraction <= 0.5:
-            raise ConfigError(f"ratchet: rest_tolerance_fraction must be 0..0.5, got {self.rest_tolerance_fraction}")
-        if not 0.0 <= self.pawl_drop_rad < self.pawl_lift_rad:
-            raise ConfigError(
-                f"ratchet: pawl thresholds must satisfy 0 <= drop < lift (rad), got {self.pawl_drop_rad}, {self.pawl_lift_rad}"
-            )
-
-    @property
-    def n_teeth(self) -> int:
-        """Number of teeth."""
-        return len(self.teeth_rad)
-
-    @functools.cached_property
-    def tolerance_rad(self) -> float:
-        """How far (rad) below a tooth's rest angle the lever still rests on it."""
-        t = np.asarray(self.teeth_rad, dtype=float)
-        pitch = float(np.min(np.diff(t))) if t.size > 1 else float(np.deg2rad(5.0))
-        return self.rest_tolerance_fraction * pitch
-
-    @functools.cached_property
-    def _thresholds(self) -> list[float]:
-        return [float(t) - self.tolerance_rad for t in self.teeth_rad]
-
-    def teeth_engaged(self, angle: float) -> int:
-        """Number of teeth (0..n) the lever at ``angle`` (rad) is at or above: the tooth the
-        pawl holds it on (0: fully down)."""
-        return bisect.bisect_right(self._thresholds, angle)
-
-
-# -- the view --------------------------------------------------------------------------------------
+from acoustic_sim.world.lever_geometry import GearshiftGeometry, RatchetGeometry
 
 
 @dataclasses.dataclass(frozen=True)
@@ -177,8 +49,8 @@ class ActuatorInfo:
     force_limit: np.ndarray
 
 
-class WorldView:
-    """Named read-only accessors over a MuJoCo model and its data.
+class SceneView:
+    """Named read-only accessors over any MuJoCo model and its data (no robot needed).
 
     Parameters
     ----------
@@ -186,54 +58,18 @@ class WorldView:
     data : mujoco.MjData
         Read, never written. The view holds MuJoCo's named accessors, so it stays valid
         across ``mj_step`` and ``mj_resetData`` of this ``data``.
-
-    Raises
-    ------
-    ConfigError
-        If the model lacks the robot's ear sites or head body (every scene has them).
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
-            raise ConfigError(f"WorldView needs a mujoco.MjModel and mujoco.MjData, got {type(model).__name__}, {type(data).__name__}")
+            raise ConfigError(f"{type(self).__name__} needs a mujoco.MjModel and mujoco.MjData, got {type(model).__name__}, "
+                              f"{type(data).__name__}")
         self.model = model
         self._data = data
-        for what, name, kind in (
-            ("left ear site", names.EAR_LEFT_SITE, mujoco.mjtObj.mjOBJ_SITE),
-            ("right ear site", names.EAR_RIGHT_SITE, mujoco.mjtObj.mjOBJ_SITE),
-            ("head body", names.HEAD_BODY, mujoco.mjtObj.mjOBJ_BODY),
-        ):
-            if mujoco.mj_name2id(model, kind, name) < 0:
-                raise ConfigError(f"the model has no {what} {name!r}: is the robot attached with prefix {names.ROBOT!r}?")
-        self._ear_left = data.site(names.EAR_LEFT_SITE)
-        self._ear_right = data.site(names.EAR_RIGHT_SITE)
-        self._head = data.body(names.HEAD_BODY)
         self._sites: dict[str, object] = {}
         self._bodies: dict[str, object] = {}
         self._joints: dict[str, object] = {}
         self._joint_addresses: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
-        self.gearshift_geometry: GearshiftGeometry | None = None
-        """Detents of the cabin's gearshift; ``None`` in scenes without one."""
-        self.ratchet_geometry: RatchetGeometry | None = None
-        """Ratchet of the cabin's parking brake; ``None`` in scenes without one."""
-        if self.has_joint(names.GEARSHIFT_JOINT):
-            detents = self._numeric(names.GEAR_DETENTS_NUMERIC, "the detent angles (rad) of P, R, N, D", size=len(names.GEAR_NAMES))
-            self.gearshift_geometry = GearshiftGeometry(detents_rad=tuple(float(v) for v in detents))
-            self._gear_joint = self._joint(names.GEARSHIFT_JOINT)
-        if self.has_joint(names.BRAKE_JOINT):
-            teeth = self._numeric(names.BRAKE_TEETH_NUMERIC, "the lever's rest angle (rad) on each ratchet tooth")
-            self.ratchet_geometry = RatchetGeometry(teeth_rad=tuple(float(v) for v in teeth))
-            self._brake_joint = self._joint(names.BRAKE_JOINT)
-            if not self.has_joint(names.BRAKE_PAWL_JOINT):
-                raise ConfigError(f"the parking brake has no pawl joint {names.BRAKE_PAWL_JOINT!r} (its snap is the ratchet's click)")
-            self._pawl_joint = self._joint(names.BRAKE_PAWL_JOINT)
-        nu = model.nu
-        limited = np.asarray(model.actuator_forcelimited, dtype=bool)
-        span = np.max(np.abs(np.asarray(model.actuator_forcerange, dtype=float).reshape(nu, 2)), axis=1) if nu else np.zeros(0)
-        self._actuators = ActuatorInfo(
-            names=tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}" for i in range(nu)),
-            force_limit=np.where(limited, span, 0.0),
-        )
 
     # -- lookup ---------------------------------------------------------------------------------
     def has_site(self, name: str) -> bool:
@@ -269,62 +105,10 @@ class WorldView:
             self._joints[name] = self._data.joint(name)
         return self._joints[name]
 
-    def _numeric(self, name: str, what: str, *, size: int | None = None) -> np.ndarray:
-        i = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
-        if i < 0:
-            raise ConfigError(f"the model has no custom numeric {name!r} with {what}: the asset must declare it")
-        adr, n = int(self.model.numeric_adr[i]), int(self.model.numeric_size[i])
-        values = np.array(self.model.numeric_data[adr : adr + n], dtype=float)
-        if (size is not None and values.size != size) or values.size == 0 or not np.all(np.isfinite(values)):
-            expected = f"{size} finite values" if size is not None else "finite values"
-            raise ConfigError(f"custom numeric {name!r} must hold {expected}: {what}; got {values.tolist()}")
-        return values
-
     # -- time -----------------------------------------------------------------------------------
     def time(self) -> float:
         """Simulation time (s)."""
         return float(self._data.time)
-
-    # -- head and ears --------------------------------------------------------------------------
-    def ear_poses(self) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (m, world) of the left and right ear-canal entrances, each shape (3,)."""
-        return self._ear_left.xpos.copy(), self._ear_right.xpos.copy()
-
-    def head_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Head centre (m, world) and orientation (3x3, head to world) from the ear sites.
-
-        The centre is the midpoint of the ears; y points from the right ear to the left;
-        x is the head body's forward axis made orthogonal to y; z = x cross y.
-
-        Raises
-        ------
-        ConfigError
-            If the ears coincide or the head's forward axis is parallel to the ear axis.
-        """
-        # Plain floats: this runs every control step and numpy's per-call cost dominates 3-vectors.
-        lx, ly, lz = self._ear_left.xpos.tolist()
-        rx, ry, rz = self._ear_right.xpos.tolist()
-        yx, yy, yz = lx - rx, ly - ry, lz - rz
-        span = math.sqrt(yx * yx + yy * yy + yz * yz)
-        if span < 1e-3:
-            raise ConfigError(f"the ear sites are {span * 1e3:.2f} mm apart: no interaural axis")
-        yx, yy, yz = yx / span, yy / span, yz / span
-        m = self._head.xmat.tolist()  # row-major 3x3: the body's x axis is entries 0, 3, 6
-        fx, fy, fz = m[0], m[3], m[6]
-        dot = fx * yx + fy * yy + fz * yz
-        xx, xy, xz = fx - dot * yx, fy - dot * yy, fz - dot * yz
-        nx = math.sqrt(xx * xx + xy * xy + xz * xz)
-        if nx < 1e-6:
-            raise ConfigError("the head body's forward axis is parallel to the ear axis")
-        xx, xy, xz = xx / nx, xy / nx, xz / nx
-        zx, zy, zz = xy * yz - xz * yy, xz * yx - xx * yz, xx * yy - xy * yx
-        centre = np.array((0.5 * (lx + rx), 0.5 * (ly + ry), 0.5 * (lz + rz)))
-        return centre, np.array(((xx, yx, zx), (xy, yy, zy), (xz, yz, zz)))
-
-    def ear_spacing(self) -> float:
-        """Distance (m) between the ear sites."""
-        return float(np.linalg.norm(self._ear_left.xpos - self._ear_right.xpos))
-
     # -- generic poses --------------------------------------------------------------------------
     def site_position(self, name: str) -> np.ndarray:
         """Position (m, world) of site ``name``, shape (3,)."""
@@ -405,6 +189,134 @@ class WorldView:
             adr = self._joint_addresses[key] = (np.asarray(qpos, np.int64), np.asarray(qvel, np.int64))
         return self._data.qpos[adr[0]], self._data.qvel[adr[1]]
 
+    def geom_positions(self) -> np.ndarray:
+        """Centres (ngeom x 3, m, world) of every geom, indexed by geom id (a copy)."""
+        return np.array(self._data.geom_xpos, dtype=np.float64)
+
+    def joint_axis(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """A joint's anchor point (m, world) and its unit axis (world), each shape (3,)."""
+        jid = self._joint(name).id
+        return self._data.xanchor[jid].copy(), self._data.xaxis[jid].copy()
+
+    # -- controls, rays, pictures ---------------------------------------------------------------
+    def control(self, name: str) -> float:
+        """The control of actuator ``name`` now (a position servo's target, rad or m; a
+        velocity servo's, rad/s)."""
+        if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, name) < 0:
+            raise ConfigError(f"the model has no actuator {name!r}")
+        return float(self._data.actuator(name).ctrl[0])
+
+    def ray(self, origin, direction, *, geomgroup=None, static: bool = True, exclude_body: int = -1) -> tuple[float, int]:
+        """The first geom a ray from ``origin`` (m, world) along unit ``direction`` hits
+        (``mujoco.mj_ray``): its distance (m; -1 for none) and its geom id (-1 for none).
+        ``geomgroup``: the six groups' 0/1 flags (None: all); ``static``: static geoms count;
+        ``exclude_body``: a body id whose geoms are ignored (-1: none)."""
+        geom = np.zeros(1, np.int32)
+        hit = mujoco.mj_ray(self.model, self._data, origin, direction, geomgroup, int(static), exclude_body, geom)
+        return hit, int(geom[0])
+
+    def render(self, renderer, camera=-1, *, scene_option=None) -> np.ndarray:
+        """The picture of the current state (H x W x 3 uint8) from ``camera`` (an id, a name or
+        a ``mujoco.MjvCamera``) by ``renderer`` (a ``mujoco.Renderer`` of this model)."""
+        renderer.update_scene(self._data, camera, scene_option=scene_option)
+        return renderer.render()
+
+
+class WorldView(SceneView):
+    """Named read-only accessors over a composed scene: the robot's head and ears, the cabin's
+    levers, the actuators, and every :class:`SceneView` getter (same parameters).
+
+    Raises
+    ------
+    ConfigError
+        If the model lacks the robot's ear sites or head body (every scene has them).
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        super().__init__(model, data)
+        for what, name, kind in (
+            ("left ear site", names.EAR_LEFT_SITE, mujoco.mjtObj.mjOBJ_SITE),
+            ("right ear site", names.EAR_RIGHT_SITE, mujoco.mjtObj.mjOBJ_SITE),
+            ("head body", names.HEAD_BODY, mujoco.mjtObj.mjOBJ_BODY),
+        ):
+            if mujoco.mj_name2id(model, kind, name) < 0:
+                raise ConfigError(f"the model has no {what} {name!r}: is the robot attached with prefix {names.ROBOT!r}?")
+        self._ear_left = data.site(names.EAR_LEFT_SITE)
+        self._ear_right = data.site(names.EAR_RIGHT_SITE)
+        self._head = data.body(names.HEAD_BODY)
+        self.gearshift_geometry: GearshiftGeometry | None = None
+        """Detents of the cabin's gearshift; ``None`` in scenes without one."""
+        self.ratchet_geometry: RatchetGeometry | None = None
+        """Ratchet of the cabin's parking brake; ``None`` in scenes without one."""
+        if self.has_joint(names.GEARSHIFT_JOINT):
+            detents = self._numeric(names.GEAR_DETENTS_NUMERIC, "the detent angles (rad) of P, R, N, D", size=len(names.GEAR_NAMES))
+            self.gearshift_geometry = GearshiftGeometry(detents_rad=tuple(float(v) for v in detents))
+            self._gear_joint = self._joint(names.GEARSHIFT_JOINT)
+        if self.has_joint(names.BRAKE_JOINT):
+            teeth = self._numeric(names.BRAKE_TEETH_NUMERIC, "the lever's rest angle (rad) on each ratchet tooth")
+            self.ratchet_geometry = RatchetGeometry(teeth_rad=tuple(float(v) for v in teeth))
+            self._brake_joint = self._joint(names.BRAKE_JOINT)
+            if not self.has_joint(names.BRAKE_PAWL_JOINT):
+                raise ConfigError(f"the parking brake has no pawl joint {names.BRAKE_PAWL_JOINT!r} (its snap is the ratchet's click)")
+            self._pawl_joint = self._joint(names.BRAKE_PAWL_JOINT)
+        nu = model.nu
+        limited = np.asarray(model.actuator_forcelimited, dtype=bool)
+        span = np.max(np.abs(np.asarray(model.actuator_forcerange, dtype=float).reshape(nu, 2)), axis=1) if nu else np.zeros(0)
+        self._actuators = ActuatorInfo(
+            names=tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}" for i in range(nu)),
+            force_limit=np.where(limited, span, 0.0),
+        )
+
+    def _numeric(self, name: str, what: str, *, size: int | None = None) -> np.ndarray:
+        i = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+        if i < 0:
+            raise ConfigError(f"the model has no custom numeric {name!r} with {what}: the asset must declare it")
+        adr, n = int(self.model.numeric_adr[i]), int(self.model.numeric_size[i])
+        values = np.array(self.model.numeric_data[adr : adr + n], dtype=float)
+        if (size is not None and values.size != size) or values.size == 0 or not np.all(np.isfinite(values)):
+            expected = f"{size} finite values" if size is not None else "finite values"
+            raise ConfigError(f"custom numeric {name!r} must hold {expected}: {what}; got {values.tolist()}")
+        return values
+
+    # -- head and ears --------------------------------------------------------------------------
+    def ear_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (m, world) of the left and right ear-canal entrances, each shape (3,)."""
+        return self._ear_left.xpos.copy(), self._ear_right.xpos.copy()
+
+    def head_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Head centre (m, world) and orientation (3x3, head to world) from the ear sites.
+
+        The centre is the midpoint of the ears; y points from the right ear to the left;
+        x is the head body's forward axis made orthogonal to y; z = x cross y.
+
+        Raises
+        ------
+        ConfigError
+            If the ears coincide or the head's forward axis is parallel to the ear axis.
+        """
+        # Plain floats: this runs every control step and numpy's per-call cost dominates 3-vectors.
+        lx, ly, lz = self._ear_left.xpos.tolist()
+        rx, ry, rz = self._ear_right.xpos.tolist()
+        yx, yy, yz = lx - rx, ly - ry, lz - rz
+        span = math.sqrt(yx * yx + yy * yy + yz * yz)
+        if span < 1e-3:
+            raise ConfigError(f"the ear sites are {span * 1e3:.2f} mm apart: no interaural axis")
+        yx, yy, yz = yx / span, yy / span, yz / span
+        m = self._head.xmat.tolist()  # row-major 3x3: the body's x axis is entries 0, 3, 6
+        fx, fy, fz = m[0], m[3], m[6]
+        dot = fx * yx + fy * yy + fz * yz
+        xx, xy, xz = fx - dot * yx, fy - dot * yy, fz - dot * yz
+        nx = math.sqrt(xx * xx + xy * xy + xz * xz)
+        if nx < 1e-6:
+            raise ConfigError("the head body's forward axis is parallel to the ear axis")
+        xx, xy, xz = xx / nx, xy / nx, xz / nx
+        zx, zy, zz = xy * yz - xz * yy, xz * yx - xx * yz, xx * yy - xy * yx
+        centre = np.array((0.5 * (lx + rx), 0.5 * (ly + ry), 0.5 * (lz + rz)))
+        return centre, np.array(((xx, yx, zx), (xy, yy, zy), (xz, yz, zz)))
+
+    def ear_spacing(self) -> float:
+        """Distance (m) between the ear sites."""
+        return float(np.linalg.norm(self._ear_left.xpos - self._ear_right.xpos))
     # -- cabin mechanisms -----------------------------------------------------------------------
     def _need(self, geometry, what: str):
         if geometry is None:
@@ -448,3 +360,6 @@ class WorldView:
     def actuator_state(self) -> tuple[np.ndarray, np.ndarray]:
         """Actuator velocities (rad/s or m/s) and forces (N m or N), each shape (nu,)."""
         return self._data.actuator_velocity.copy(), self._data.actuator_force.copy()
+
+
+__all__ = ["ActuatorInfo", "GearshiftGeometry", "RatchetGeometry", "SceneView", "WorldView"]
