@@ -12,10 +12,11 @@ actuation
     (:func:`grasp`, :func:`release`, :func:`reach`), the mocap bodies (:func:`place_mocap`).
 snapshot
     A PNG of a scene from MuJoCo's offscreen renderer.
-view, lever_geometry, events, coupling, egonoise
+view, lever_geometry, events, coupling, emitter_rings, egonoise
     Named read-only accessors over ``MjData`` (the one reader); the levers' detents and
     ratchet; sound events from physics; the once-per-control-step hand-off to the acoustic
-    world; the motors' ego-noise.
+    world and the ring buffers through which the emitters' sounds reach the renderer; the
+    motors' ego-noise.
 soundscape
     Sounds scheduled anywhere in the room (the one owner of their renderer sources) and the
     ground truth of what is sounding; :class:`acoustic_sim.loop.HearingLoop` drives it.
