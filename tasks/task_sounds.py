@@ -51,7 +51,7 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     image 14 (the alarm near the median plane is mostly placed behind). The 16-bin fast bank
     of then with the lateral rule: 10 of 20 on the test seeds, 73 on 1000-1099: near the
     median plane its lateral angles scatter, so the tests' bank became the jittered 32-bin
-    one (:data:`~acoustic_sim.auditory.ssdenet_profiles.FAST`).
+    one (:data:`~acoustic_sim.auditory.ssdenet.recipes.FAST`).
     ParkingBrake has no outside sounds (100-119 unchanged).
 
     Parameters

@@ -9,7 +9,7 @@ these 20 episodes. Until 2026-12-04 (session 21) the cabin targets were expected
 with a floor below: the 16-bin fast SSDENet bank gave ReverseAlarm 18, 15 and 14 of 20 with
 one false release each for training seeds 0, 1 and 2. Since the line-of-sight law for
 outside sounds, the lateral rule of :class:`policies.scripted_cabin.ScriptedReverseAlarm` and the
-jittered 32-bin fast bank (:data:`acoustic_sim.auditory.ssdenet_profiles.FAST`; measurements in
+jittered 32-bin fast bank (:data:`acoustic_sim.auditory.ssdenet.recipes.FAST`; measurements in
 docs/notes/ssdenet_recipes.md), the three training seeds give ReverseAlarm 19, 20 and 18
 and ParkingBrake 19, 18 and 19 of 20, none with a false release. CI trains its own models
 on another CPU, which is another draw: a fast bank lets go falsely in about 0-4 % of cabin

@@ -14,7 +14,7 @@ from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.acoustics.sounds import white_noise
 from acoustic_sim.auditory import checkpoint as ckpt
 from acoustic_sim.auditory import ssdenet as S
-from acoustic_sim.auditory import ssdenet_training as T
+from acoustic_sim.auditory import ssdenet as T
 from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_BINS, N_FFT, analyze, leakage_envelope, window
 from acoustic_sim.directions import DirectionGrid, angular_error_deg

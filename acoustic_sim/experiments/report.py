@@ -56,7 +56,7 @@ DETECTION_F1_MIN = 0.90
 """Target: MelCNN's held-out macro F1."""
 
 WHY = {
-    "simulation": "`acoustic_sim.auditory.ssdenet_profiles.PAPER` (its docstring: which bins the networks have, and "
+    "simulation": "`acoustic_sim.auditory.ssdenet.recipes.PAPER` (its docstring: which bins the networks have, and "
                   "what was measured for the signals whose harmonics meet few of them)",
     "room": "`acoustic_sim.experiments.localization` (its docstring: why the frames lose the median plane in the "
             "reverberant room) and `ROOM_ONSET_WINDOWS` there",

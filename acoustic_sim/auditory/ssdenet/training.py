@@ -1,4 +1,4 @@
-"""Training an SSDENet bank: the paper's virtual-source data, Gaussian targets, MSE and Adam.
+"""Training an SSDENet bank's weights: the paper's virtual-source data, Gaussian targets, MSE and Adam.
 
 Training data (the paper's equations)
     Per bin, a virtual source in direction d_h::
@@ -21,7 +21,7 @@ Training data (the paper's equations)
       (what the renderer's background noise has), drawn anew for every example. Its total
       power ``E|n_l|^2 + E|n_r|^2`` is ``|s|^2 10^(-SNR/10)``, with SNR uniform in the
       profile's ``snr_db`` range (default 10-40 dB) per (bin, sound): estimation uses only
-      bins at least 10 dB above the noise (:func:`acoustic_sim.auditory.ssdenet.valid_bins`).
+      bins at least 10 dB above the noise (:func:`acoustic_sim.auditory.ssdenet.validity.valid_bins`).
     - ``P_train``: the paper's Gaussian of the angle between d_k and d_h with ``sigma_deg``
       (``paper``: 6 deg, so a grid neighbour 10.8 deg away gets 0.2; ``fast``: 4 deg),
       *without* the paper's 1/(2 pi sigma^2) factor: the outputs are sigmoids and cannot
@@ -29,11 +29,12 @@ Training data (the paper's equations)
       degrees 0.004, which would leave nothing to learn). Narrow targets localise better:
       with a fast bank, sigma 12, 8, 6 and 4 deg gave mean errors of 17, 11, 7 and 4 deg.
     - Loss: mean squared error; optimiser Adam; initial weights as
-      :func:`acoustic_sim.auditory.ssdenet.init_weights`.
+      :func:`acoustic_sim.auditory.ssdenet.networks.init_weights`.
 
-Entry points: :func:`train_bank` (returns a bank), :func:`train_command` (``acoustic-sim
-train ssdenet``: trains on the paper grid of an HRTF and saves the checkpoint), and
-:meth:`acoustic_sim.auditory.ssdenet.SSDENetBank.load_or_train` (trains on first use).
+Entry points: :func:`train_weights` (the trained stacked weights; this module knows no
+bank), :func:`acoustic_sim.auditory.ssdenet.bank.train_bank` (a bank of them),
+:func:`acoustic_sim.auditory.ssdenet.command.train_command` (``acoustic-sim train ssdenet``)
+and :meth:`acoustic_sim.auditory.ssdenet.bank.SSDENetBank.load_or_train` (trains on first use).
 """
 
 from __future__ import annotations
@@ -46,13 +47,8 @@ import torch
 
 from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_FFT
-from acoustic_sim.auditory.ssdenet import (
-    N_FEATURES,
-    SSDENetBank,
-    SSDENetProfile,
-    get_profile,
-    ssdenet_forward,
-)
+from acoustic_sim.auditory.ssdenet.networks import PARAMETER_NAMES, init_weights, ssdenet_forward
+from acoustic_sim.auditory.ssdenet.recipes import N_FEATURES, SSDENetProfile, get_profile
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, angle_between_deg
@@ -189,9 +185,11 @@ def training_set(hrtf, grid: DirectionGrid, profile, rng: np.random.Generator) -
 # ------------------------------------------------------------------------------------------
 
 
-def train_bank(hrtf, grid: DirectionGrid, profile, *, seed: int | None = None, progress: bool = True,
-               stats: dict | None = None) -> SSDENetBank:
-    """Train an SSDENet bank on the paper's virtual-source data (module docstring).
+def train_weights(hrtf, grid: DirectionGrid, profile, *, seed: int | None = None, progress: bool = True,
+                  stats: dict | None = None) -> dict[str, torch.Tensor]:
+    """Train the stacked weights of an SSDENet bank on the paper's virtual-source data
+    (module docstring); :func:`~acoustic_sim.auditory.ssdenet.bank.train_bank` wraps them
+    in a bank.
 
     Parameters
     ----------
@@ -212,8 +210,9 @@ def train_bank(hrtf, grid: DirectionGrid, profile, *, seed: int | None = None, p
 
     Returns
     -------
-    SSDENetBank
-        In eval mode.
+    dict of str to torch.Tensor
+        The trained weights, float32, named and shaped as
+        :func:`~acoustic_sim.auditory.ssdenet.networks.init_weights` returns them.
     """
     prof = get_profile(profile)
     seed = prof.seed if seed is None else int(seed)
@@ -229,7 +228,7 @@ def train_bank(hrtf, grid: DirectionGrid, profile, *, seed: int | None = None, p
 
 
 def _train(hrtf, grid: DirectionGrid, prof: SSDENetProfile, seed: int, progress: bool,
-           stats: dict | None) -> SSDENetBank:
+           stats: dict | None) -> dict[str, torch.Tensor]:
     from acoustic_sim.progress import progress_bar
 
     rng = np.random.default_rng(seed)
@@ -241,14 +240,12 @@ def _train(hrtf, grid: DirectionGrid, prof: SSDENetProfile, seed: int, progress:
     data_s = time.perf_counter() - t0
     counts = torch.bincount(source_t, minlength=targets.shape[0]).to(torch.float64)
     prior = float(counts @ targets.mean(dim=1, dtype=torch.float64)) / source.size  # mean target value
-    bank = SSDENetBank(grid, prof.bins, prof.hidden, hrtf_ident=hrtf.ident, hrtf_name=hrtf.name, profile=prof,
-                       generator=gen, output_prior=prior, seed=seed)
-    bank.train()
+    init = init_weights(prof.n_bins, prof.hidden, len(grid), gen, output_prior=prior)
+    weights = tuple(init[name].requires_grad_(True) for name in PARAMETER_NAMES)
     x_all = torch.from_numpy(feats)  # (n_bins, N, 5)
     n = x_all.shape[1]
     steps = math.ceil(n / prof.batch_size)
-    opt = torch.optim.Adam(bank.parameters(), lr=prof.learning_rate)
-    weights = bank._weights()
+    opt = torch.optim.Adam(weights, lr=prof.learning_rate)
     bar = progress_bar(total=prof.epochs * steps, disable=not progress, unit="step", leave=False,
                desc=f"SSDENet {prof.name} ({prof.n_bins} bins, H={prof.hidden})")
     epoch_loss = float("nan")
@@ -274,50 +271,8 @@ def _train(hrtf, grid: DirectionGrid, prof: SSDENetProfile, seed: int, progress:
             epoch_loss = total / n
     finally:
         bar.close()
-    bank.eval()
     if stats is not None:
         stats.update(data_s=data_s, train_s=time.perf_counter() - t0 - data_s, final_loss=epoch_loss,
                      steps=prof.epochs * steps)
-    return bank
+    return {name: w.detach() for name, w in zip(PARAMETER_NAMES, weights)}
 
-
-def train_command(hrtf: str, profile: str, out=None, *, seed: int | None = None, progress: bool = True) -> dict:
-    """``acoustic-sim train ssdenet``: train a bank on the paper grid of an HRTF and save it.
-
-    Parameters
-    ----------
-    hrtf : str
-        ``"kemar"``, ``"spherical"`` or a SOFA path
-        (:meth:`acoustic_sim.acoustics.hrtf.HRTF.load`).
-    profile : str
-        ``"paper"`` or ``"fast"``.
-    out : path-like, optional
-        Checkpoint file; default the cache file that
-        :meth:`~acoustic_sim.auditory.ssdenet.SSDENetBank.load_or_train` reads.
-    seed : int, optional
-        Default: the profile's seed.
-    progress : bool
-        Progress bar on stderr.
-
-    Returns
-    -------
-    dict
-        JSON-ready summary: ``path``, ``hrtf``, ``hrtf_ident``, ``grid_ident``,
-        ``n_directions``, ``profile``, ``bins``, ``frequencies_hz``, ``hidden``,
-        ``n_parameters``, ``data_s``, ``train_s``, ``final_loss``, ``seed``.
-    """
-    from acoustic_sim.acoustics.hrtf import HRTF
-
-    h = HRTF.load(hrtf)
-    grid = DirectionGrid.paper(h)
-    prof = get_profile(profile)
-    stats: dict = {}
-    bank = train_bank(h, grid, prof, seed=seed, progress=progress, stats=stats)
-    path = bank.save(SSDENetBank.cache_path(h, grid, prof) if out is None else out)
-    return {
-        "path": str(path), "hrtf": h.name, "hrtf_ident": h.ident, "grid_ident": grid.ident,
-        "n_directions": len(grid), "profile": prof.name, "bins": list(prof.bins),
-        "frequencies_hz": [round(float(f), 1) for f in prof.frequencies_hz], "hidden": prof.hidden,
-        "n_parameters": bank.n_parameters(), "data_s": round(stats["data_s"], 2), "train_s": round(stats["train_s"], 2),
-        "final_loss": stats["final_loss"], "seed": prof.seed if seed is None else int(seed),
-    }

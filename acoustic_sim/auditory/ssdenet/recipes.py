@@ -1,11 +1,12 @@
 """SSDENet's bins and training recipes: which frequency bins get a network, and the profiles.
 
-A bank of per-bin networks (:mod:`acoustic_sim.auditory.ssdenet`) localises a sound only
-through the bins that have a network, so the choice of bins is part of a profile, beside the
-network size and the training recipe. :data:`PAPER` is the paper's network size on 32
-bins (:func:`harmonic_bins`; the reasons and measurements are in
-docs/notes/ssdenet_recipes.md), :data:`FAST` a small bank for tests and the tasks' regression tests, :data:`QUICK` a
-smaller one for the quick paper evaluation. All are re-exported by :mod:`acoustic_sim.auditory.ssdenet`.
+A bank of per-bin networks (:class:`~acoustic_sim.auditory.ssdenet.bank.SSDENetBank`)
+localises a sound only through the bins that have a network, so the choice of bins is part
+of a profile, beside the network size and the training recipe. :data:`PAPER` is the paper's
+network size on 32 bins (:func:`harmonic_bins`; the reasons and measurements are in
+docs/notes/ssdenet_recipes.md), :data:`FAST` a small bank for tests and the tasks'
+regression tests, :data:`QUICK` a smaller one for the quick paper evaluation. All are
+re-exported by :mod:`acoustic_sim.auditory.ssdenet`.
 """
 
 from __future__ import annotations
@@ -164,7 +165,7 @@ class SSDENetProfile:
     jitter_deg : float
         Radius (deg) of the cap around each grid direction within which each sound's
         virtual source is drawn, 0-30 (see
-        :func:`~acoustic_sim.auditory.ssdenet_training.source_directions`); 0 puts every
+        :func:`~acoustic_sim.auditory.ssdenet.training.source_directions`); 0 puts every
         source on the measured direction nearest to its grid direction.
     snr_db : tuple of float
         Range (low, high) in dB of the uniform per-sound signal-to-noise ratio of the
@@ -173,7 +174,7 @@ class SSDENetProfile:
         Default seed of the training data and the initial weights (>= 0).
     threads : int
         torch intra-op threads while training (set for the duration of
-        :func:`~acoustic_sim.auditory.ssdenet_training.train_bank` and restored afterwards);
+        :func:`~acoustic_sim.auditory.ssdenet.training.train_weights` and restored afterwards);
         0 keeps the current setting. Same seed and same thread count give bit-identical
         weights.
     """
