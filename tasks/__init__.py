@@ -16,8 +16,9 @@ What the tasks share: :mod:`tasks.base` (the env: world, ears and pipeline per s
 :mod:`tasks.cabin` (the two lever tasks), :mod:`tasks.actions` (the action vector),
 :mod:`tasks.levers` (the taught lever motions), :mod:`tasks.auditory` (the shared models),
 :mod:`tasks.task_sounds` (sounds placed anywhere: ``env.schedule_sound``; the machinery and the
-ground truth are :mod:`acoustic_sim.world.soundscape`, stepped by :mod:`acoustic_sim.loop`)
-and :mod:`tasks.spec` (the docstrings' shared parts). Importing this package imports no MuJoCo
+ground truth are :mod:`acoustic_sim.world.soundscape`, stepped by :mod:`acoustic_sim.loop`).
+The specifications are written out in each class's docstring; ``tests/spec_docs.py`` holds
+the parts they share, which the tests compare them with. Importing this package imports no MuJoCo
 or torch (the env modules load on first use: ``gymnasium.make`` or attribute access), so it
 can choose MuJoCo's offscreen OpenGL backend first (``render_mode="rgb_array"``, ``image_obs``).
 """

@@ -10,8 +10,6 @@ own, and the dashboard radio that both have) make the direction of a sound matte
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import numpy as np
 from gymnasium import spaces
 
@@ -58,39 +56,22 @@ class CabinLeverTask(HearingTaskEnv):
     coverage = 0.5
     """Attribution: in the cabin the radio, the key turn and the gearshift's clunk start while
     the ratchet or the alarm class is heard; a frame counts for a class only when it covers
-    half of the class's bins (:mod:`acoustic_sim.auditory.pipeline`; ParkingBrake, paper
-    models, 90 episodes: success 0.90 -> 0.92, false releases 0.06 -> 0.02). The room task
-    keeps 0: speech frames often cover fewer than half of the voice's bins (CallResponse,
-    fast, 20 episodes: 1.0 at 0, 0.95 at 0.5)."""
+    half of the class's bins (:mod:`acoustic_sim.auditory.pipeline`). The room task keeps 0:
+    speech frames often cover fewer than half of the voice's bins. Measurements:
+    docs/notes/cabin_settings.md."""
     specificity = 0.2
     """Attribution, second rule: a frame counts for a class only when a fifth of the energy
     its onset added lies in the class's bins (:mod:`acoustic_sim.auditory.pipeline`). A car
     horn outside starting while another vehicle's beeper is heard as the reverse alarm lit up
     the alarm's bins and put the "alarm" in front (an early release). ReverseAlarm only
     (ParkingBrake turns it off, :attr:`tasks.parking_brake.ParkingBrakeEnv.specificity`).
-    Measured on the first wavefront's 1.75 ms window (the previous design), the horn's onsets
-    held 0.06-0.26 of their energy in the alarm's 48 bins and the alarm's 0.24-0.59; paper
-    models, 90 episodes (seeds 100-189): success 0.81 -> 0.83, false releases 0.033 -> 0.
-    That window spreads the alarm's tone over a kilohertz and holds the gearshift's slide
-    when the lever enters R: the first beep's onset fell below 0.2 (0.15, fast models, seed
-    104) and the next beep, 0.8-1.1 s later, was late. The energy the onset added (10 ms
-    after minus 10 ms before) puts 0.6 of that onset in the alarm's bins; over 20 episodes
-    (fast models) the horn's onsets put 0.03-0.15 there, the radio's 0.04-0.14, the alarm's
-    first beeps (with the slide) 0.39-0.91 and the other vehicle's beeps 0.35-0.87. Over the
-    test suite's 20 episodes (fast models) the outcomes are the same with either design
-    (0.85 success, 0.05 false releases); ``results/tasks`` (paper) is the added-energy design's."""
+    Measurements: docs/notes/cabin_settings.md."""
     onset_windows = 3
     """Precedence: the reverse alarm's beeps ramp up over 2-8 ms and each gives one onset, so
     one direction sample per beep (0.8-1.1 s apart: a first beep placed wrong makes the
     release late). At a rising onset the pipeline takes three first-wavefront windows, 1 ms
     apart, and averages their maps per bin (:mod:`acoustic_sim.auditory.precedence`);
-    clicks (falling energy) keep one. Scripted policies, 1 -> 3 windows: ReverseAlarm, paper
-    models, seeds 100-189: 74/90 -> 80/90, no false release either way (100-129: 24 -> 28);
-    ParkingBrake, paper, 100-129: 26/30 both (104 on time, 118 late); fast models, seeds
-    100-119: ParkingBrake 14/20 with a false release -> 15/20 with none, ReverseAlarm 18/20
-    -> 16/20 with a false release (seed 100: another vehicle's beeper on the left, placed
-    at the alarm's front-back mirror image, which :class:`policies.scripted.ScriptedReverseAlarm`
-    accepts; the one-window estimate happened to put it elsewhere)."""
+    clicks (falling energy) keep one. Measurements: docs/notes/cabin_settings.md."""
     radio_position = (1.62, 0.78, 0.72)
     """Room-frame point (m) of the dashboard radio's loudspeaker (front, a little right)."""
     radio_probability = 0.5
@@ -99,24 +80,9 @@ class CabinLeverTask(HearingTaskEnv):
     """Range (s after the episode's start) of the radio's start."""
     radio_db = (60.0, 68.0)
     """Range (dB SPL at 1 m) of the radio's level."""
-    spec_action_rows: ClassVar = (
-        ("14", "grasp_left", "-1 .. 1", "> 0 hold, <= 0 open"),
-        ("15", "grasp_right", "-1 .. 1", "> 0 hold, <= 0 open"),
-    )
-    spec_action_notes: ClassVar = ("A grasp command > 0 closes an open hand on its lever if the palm is within 5 cm "
-                                   "of the handle; <= 0 opens it.")
-    spec_observation_rows: ClassVar = (("grasp", "(2,)", "1 if the left / right hand holds its lever"),)
-    spec_rewards: ClassVar = "+1 on success, -1 on failure, the time limit included (both at the episode's end), 0 otherwise."
     timeout_reward = -1.0
     """Holding on to the limit fails the task too: at 0 a learner learns to keep still (PPO on
     ReverseAlarm timed out in 212 of 437 episodes; docs/notes/learned_policies.md)."""
-    spec_shaped_rewards: ClassVar = (
-        f"``reward_outcome`` (the sparse reward), ``reward_progress`` (the change of {PROGRESS_WEIGHT:g} x the "
-        "lever's progress toward the position the task asks for, 0 at rest, 1 there: a potential, so over an "
-        f"episode it sums to at most {PROGRESS_WEIGHT:g}) and ``reward_timing`` (on success, {TIMING_WEIGHT:g} x "
-        "(1 - reaction / success_window_s)). A success returns at least 1, a failure at most "
-        f"{PROGRESS_WEIGHT - 1:g}.")
-    skill_rows: ClassVar = LeverSkill.rows
 
     def __init__(self, *, success_window_s: float, release_timeout_s: float, distractors: bool, **kwargs) -> None:
         for what, v in (("success_window_s", success_window_s), ("release_timeout_s", release_timeout_s)):

@@ -1,41 +1,26 @@
-"""CallResponse: a person calls the robot on its wheelchair; turn until the person is in view."""
+"""CallResponse: a person calls the robot on its wheelchair; turn until the person is in view.
+
+The crowd's placement, the field-of-view check and the look rule are :mod:`tasks.crowd`.
+"""
 
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.world import names, scenes
+from acoustic_sim.world import names
 from tasks.base import CONTROL_DT, HearingTaskEnv
+from tasks.crowd import APART_DEG, LOOK_S, OUT_OF_VIEW_DEG, ROOM_SIZE, STILL_DEG_S, Look, Sight, place_crowd, wrap, yaw_of
 from tasks.skills import TurnSkill
-
-ROOM_SIZE = (6.0, 5.0)
-"""Floor size (m) of the ``room`` scene (its air volume's x and y)."""
 
 FACING_WEIGHT = 0.3
 """Shaped reward: weight of the facing potential (:meth:`CallResponseEnv._reward_terms`)."""
 
 TIME_WEIGHT = 0.3
 """Shaped reward: what a whole episode's time costs."""
-
-OUT_OF_VIEW_DEG = 50.0
-"""Every person starts at least this far (deg of bearing) from the robot's line of sight."""
-
-APART_DEG = 60.0
-"""The people stand at least this far apart (deg of bearing from the wheelchair)."""
-
-LOOK_S = 0.25
-"""A look: a person in view while the gaze is still (below :data:`STILL_DEG_S`), this long (s).
-A turn sweeping past someone is not a look (a saccade does not fixate)."""
-
-STILL_DEG_S = 30.0
-"""The gaze is still below this angular speed (deg/s, the right eye camera's forward axis in
-the world)."""
 
 RESPONSE_WINDOW_S = 1.5
 """The default response window (s from the first call's start to the end of the look), from
@@ -57,14 +42,6 @@ PAPER_ROOM = {"people": (1, 1), "response_window_s": None, "look_s": 0.0}
 (the setting before the crowd; a deaf sweep finds the person every time)."""
 
 
-def _yaw(rotation: np.ndarray) -> float:
-    return math.atan2(float(rotation[1, 0]), float(rotation[0, 0]))
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
 class CallResponseEnv(HearingTaskEnv):
     """The paper's call-response task in a crowd: one of two or three people calls the robot
     from anywhere, behind included; the robot turns its head and eyes toward the voice, and
@@ -84,7 +61,85 @@ class CallResponseEnv(HearingTaskEnv):
     geometric check with ``mj_ray``, no rendering); looked at when in view with the gaze still
     (below 30 deg/s, :data:`STILL_DEG_S`) for ``look_s``.
 
-    {spaces_and_rewards}
+    Action Space
+    ------------
+    ``action_mode="joints"``: ``Box(-1, 1, (16,), float32)``, normalized targets; -1 and +1 are
+    the ends of the range.
+
+    ====  ========================  ==========  =====
+    idx   channel                   range       unit
+    ====  ========================  ==========  =====
+    0     neck_yaw (+ left)         -90 .. 90   deg
+    1     neck_pitch (+ nose down)  -45 .. 45   deg
+    2     eye_yaw (+ left)          -30 .. 30   deg
+    3     eye_pitch                 -25 .. 25   deg
+    4     left_shoulder_pitch       -45 .. 170  deg
+    5     left_shoulder_roll        -15 .. 120  deg
+    6     left_shoulder_yaw         -90 .. 90   deg
+    7     left_elbow                0 .. 145    deg
+    8     left_wrist                -70 .. 70   deg
+    9-13  right arm, same joints    same        deg
+    14    left_wheel (+ forward)    -5 .. 5     rad/s
+    15    right_wheel (+ forward)   -5 .. 5     rad/s
+    ====  ========================  ==========  =====
+
+    Joint targets drive position servos (the ranges are the actuators' control ranges);
+    ``env.unwrapped.layout`` converts physical targets to actions. The wheels (0.30 m radius,
+    0.60 m apart) are velocity servos: equal speeds drive, opposite speeds turn on the spot
+    (right wheel forward turns left, 1 rad/s each way = 57 deg/s).
+
+    ``action_mode="skill"``: ``Box(-1, 1, (2,), float32)``; the zero action keeps everything as
+    it is (nothing moves, nothing lets go), the rest of the robot holds its rest pose
+    (:mod:`tasks.skills`).
+
+    ===  =============  =======  =====================================================
+    idx  component      range    meaning
+    ===  =============  =======  =====================================================
+    0    neck_yaw_rate  -1 .. 1  neck yaw rate, x 90 deg/s (+ left), within its range
+    1    turn_rate      -1 .. 1  wheelchair turn rate on the spot, x 90 deg/s (+ left)
+    ===  =============  =======  =====================================================
+
+    Observation Space
+    -----------------
+    ``Dict``:
+
+    ===============  =========  ===================================================================
+    key              shape      meaning
+    ===============  =========  ===================================================================
+    joint_pos        (14,)      rad: neck yaw, pitch; eye yaw, pitch; left arm 5; right arm 5
+    joint_vel        (14,)      rad/s, same order (clipped to +-50)
+    base             (3,)       the wheelchair's odometry: heading since the start (rad, +-pi, +
+                                left), forward speed (m/s), yaw rate (rad/s)
+    class_prob       (6,)       the percept's fused class probabilities (car_horn, reverse_alarm,
+                                ratchet, gearshift, key_turning, human_voice)
+    class_dir        (18,)      per class, the estimated direction (unit vector, head frame: x
+                                forward, y left, z up), class k in entries 3k..3k+2; zeros when the
+                                class has no estimate
+    class_conf       (6,)       per class, the estimate's confidence 0..1 (0: no estimate)
+    tracked_dir      (18,)      per class, the world-frame tracker's direction seen from the head
+                                now (unit vector, head frame), from every frame heard this episode;
+                                zeros before any
+    tracked_conf     (6,)       per class, the tracker's posterior mass near its peak 0..1 (0:
+                                nothing heard yet)
+    tracked_decided  (6,)       per class, 1 when the tracker has decided front from back (a head
+                                turn moved the mirror image away), else 0
+    existence        (D,)       SSDENet existence map of the most likely class that has an
+                                estimate, over the D (327) grid directions; zeros if none
+    audio            (2, 706)   optional (``audio_obs``): the digital ear block, full scale
+    spectra          (2, 1025)  optional (``spectra_obs``): |X|^2 of the ear frame, full scale
+    image            (H, W, 3)  optional (``image_obs``): the right eye camera, uint8
+    ===============  =========  ===================================================================
+
+    Rewards
+    -------
+    ``reward_mode="sparse"``: +1 when the caller is looked at, 0 otherwise (``wrong_person``,
+    ``too_late``, ``timeout``).
+
+    ``reward_mode="shaped"``: the sum of the terms that ``info`` reports each step in both
+    modes: ``reward_outcome`` (the sparse reward), ``reward_facing`` (the change of 0.3 x (1 -
+    the angle between the head's forward and the person / 180 deg): a potential, summing over an
+    episode to within +-0.3) and ``reward_time`` (-0.3 / the episode's step limit each step). A
+    success returns at least 0.4, a failure at most 0.3.
 
     Starting State
     --------------
@@ -124,7 +179,17 @@ class CallResponseEnv(HearingTaskEnv):
     :data:`PAPER_ROOM` holds the paper's setting (one person, no window, in view).
     ``call_interval_s`` (tuple, default (5.0, 7.0)): seconds from one call's start to the next.
     ``distractors`` (bool, default True): schedule the loudspeaker's sounds.
-    {common_arguments}
+    ``render_mode`` (str | None, default None): ``"rgb_array"`` for :meth:`render`.
+    ``profile`` (str, default "paper"): auditory models, ``"paper"`` or ``"fast"``.
+    ``hrtf`` (str, default "kemar"): the ears.
+    ``max_episode_s`` (float | None, default None): truncation time in s (None: 30 s).
+    ``action_mode`` (str, default "joints"): ``"joints"`` or ``"skill"`` (see Action Space).
+    ``reward_mode`` (str, default "sparse"): ``"sparse"`` or ``"shaped"`` (see Rewards).
+    ``audio_obs`` (bool, default False): add ``audio``.
+    ``spectra_obs`` (bool, default False): add ``spectra``.
+    ``image_obs`` (bool, default False): add ``image``.
+    ``image_size`` (tuple, default (120, 160)): (height, width) of ``image``, pixels.
+    ``torch_threads`` (int | None, default 1): torch threads while the pipeline runs.
     """
 
     task = "call-response"
@@ -135,25 +200,6 @@ class CallResponseEnv(HearingTaskEnv):
     other_probability = 0.4
     WHEEL_RADIUS_M = 0.30
     TRACK_M = 0.60
-    spec_action_rows: ClassVar = (
-        ("14", "left_wheel (+ forward)", "-5 .. 5", "rad/s"),
-        ("15", "right_wheel (+ forward)", "-5 .. 5", "rad/s"),
-    )
-    spec_action_notes: ClassVar = ("The wheels (0.30 m radius, 0.60 m apart) are velocity servos: equal speeds drive, "
-                                   "opposite speeds turn on the spot (right wheel forward turns left, 1 rad/s each way "
-                                   "= 57 deg/s).")
-    spec_rewards: ClassVar = "+1 when the caller is looked at, 0 otherwise (``wrong_person``, ``too_late``, ``timeout``)."
-    spec_shaped_rewards: ClassVar = (
-        f"``reward_outcome`` (the sparse reward), ``reward_facing`` (the change of {FACING_WEIGHT:g} x "
-        "(1 - the angle between the head's forward and the person / 180 deg): a potential, summing over an "
-        f"episode to within +-{FACING_WEIGHT:g}) and ``reward_time`` (-{TIME_WEIGHT:g} / the episode's step limit "
-        f"each step). A success returns at least {1 - FACING_WEIGHT - TIME_WEIGHT:g}, a failure at most "
-        f"{FACING_WEIGHT:g}.")
-    skill_rows: ClassVar = TurnSkill.rows
-    spec_observation_rows: ClassVar = (
-        ("base", "(3,)", ("the wheelchair's odometry: heading since the start (rad, +-pi, + left), forward speed "
-                          "(m/s), yaw rate (rad/s)")),
-    )
 
     def __init__(self, *, render_mode: str | None = None, profile: str = "paper", hrtf: str = "kemar",
                  max_episode_s: float | None = None, action_mode: str = "joints", reward_mode: str = "sparse",
@@ -184,60 +230,11 @@ class CallResponseEnv(HearingTaskEnv):
                          action_mode=action_mode, reward_mode=reward_mode,
                          audio_obs=audio_obs, spectra_obs=spectra_obs, image_obs=image_obs, image_size=image_size,
                          torch_threads=torch_threads)
-        h, w = self.image_size
-        self._tan_v = math.tan(math.radians(60.0) / 2.0)  # the eye cameras' fovy
-        self._tan_h = self._tan_v * w / h
 
     # -- episode ------------------------------------------------------------------------------
     def _scene_config(self, rng: np.random.Generator):
-        n = int(rng.integers(self.people[0], self.people[1] + 1))
-        for _ in range(100):  # a draw whose people or loudspeaker do not fit (walls, spacing) is drawn again
-            chair = np.array([rng.uniform(1.5, ROOM_SIZE[0] - 1.5), rng.uniform(1.5, ROOM_SIZE[1] - 1.5)])
-            heading = rng.uniform(-180.0, 180.0)
-            spots: list[tuple[np.ndarray, float]] = []
-            for _ in range(n):
-                spot = self._place(rng, chair, heading, [b for _, b in spots])
-                if spot is None:
-                    break
-                spots.append(spot)
-            if len(spots) < n:
-                continue
-            caller = int(rng.integers(n))
-            person, person_bearing = spots.pop(caller)
-            placed = self._place(rng, chair, heading, [person_bearing], speaker=True)
-            if placed is not None:
-                speaker = placed[0]
-                break
-        else:
-            raise ConfigError(f"could not place {n} people and the loudspeaker in the room (this is a bug)")
-        self.person_bearing_deg = float(person_bearing)
-        self.bystander_bearings_deg = [float(b) for _, b in spots]
-
-        def face(p):  # facing the robot
-            return math.degrees(math.atan2(chair[1] - p[1], chair[0] - p[0]))
-
-        return scenes.RoomConfig(wheelchair_position=tuple(chair), wheelchair_yaw_deg=float(heading),
-                                person_position=tuple(person), person_yaw_deg=face(person),
-                                speaker_position=tuple(speaker), speaker_yaw_deg=face(speaker),
-                                bystanders=tuple((float(p[0]), float(p[1]), face(p)) for p, _ in spots))
-
-    @staticmethod
-    def _place(rng, chair, heading_deg, avoid_bearings, *, speaker: bool = False):
-        """A floor point 0.6 m inside the walls at a random bearing (deg, relative to the
-        wheelchair's heading) and distance, :data:`APART_DEG` from every bearing of
-        ``avoid_bearings``; a person (not ``speaker``) out of view. None if none is found."""
-        for _ in range(1000):
-            bearing = rng.uniform(-180.0, 180.0)
-            dist = rng.uniform(1.3, 2.5) if speaker else rng.uniform(1.4, 2.4)
-            if not speaker and abs(bearing) < OUT_OF_VIEW_DEG:
-                continue  # people start out of view
-            if any(abs(_wrap(math.radians(bearing - b))) < math.radians(APART_DEG) for b in avoid_bearings):
-                continue
-            a = math.radians(heading_deg + bearing)
-            p = chair + dist * np.array([math.cos(a), math.sin(a)])
-            if 0.6 <= p[0] <= ROOM_SIZE[0] - 0.6 and 0.6 <= p[1] <= ROOM_SIZE[1] - 0.6:
-                return p, bearing
-        return None
+        config, self.person_bearing_deg, self.bystander_bearings_deg = place_crowd(rng, self.people)
+        return config
 
     def _setup_world(self, model, data, rng) -> None:
         self.found_s: float | None = None
@@ -248,12 +245,10 @@ class CallResponseEnv(HearingTaskEnv):
         self._in_view = False
         self.bystander_heads = names.BYSTANDER_HEAD_BODIES[: len(self.bystander_bearings_deg)]
         self.looked_at: str | None = None
-        self._look = (None, 0)  # (who, steps) of the look in progress
-        self._before_call: set | None = None
-        self._gaze_prev: np.ndarray | None = None
-        self.gaze_speed_deg_s = 0.0
+        self._looking = Look()
 
     def _schedule(self, rng: np.random.Generator) -> None:
+        self.sight = Sight(self.model, self.data, self.view, self.image_size)
         ev = self.coupling.events
         t = rng.uniform(0.3, 1.5)
         self.call_times = []
@@ -272,59 +267,35 @@ class CallResponseEnv(HearingTaskEnv):
                 # Drawn from the loudspeaker emitter's own generator: the sounds it would play itself.
                 self.schedule_sound(f"loudspeaker{i}", label, ev.draw_later("loudspeaker", label), speaker, t,
                                     ev.config.loudspeaker_db, frame="world", detail="loudspeaker")
-        self.initial_heading = _yaw(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
+        self.initial_heading = yaw_of(self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)[1])
         self._update_base()
         self._in_view, self._image_uv = self.person_in_view()
-        self._update_gaze_speed()
+        self.sight.update_gaze_speed(CONTROL_DT)
 
     # -- vision: the geometric check -------------------------------------------------------------
     def person_in_view(self, head_body: str = names.PERSON_HEAD_BODY) -> tuple[bool, tuple[float, float]]:
         """Whether a person's head (default the caller's) is in the right eye camera's field of
-        view and not occluded, and where (normalized image coordinates u right, v up, -1..1)."""
-        origin, rot = self.view.camera_pose(names.EYE_CAMERAS[1])
-        head = self.view.body_pose(head_body)[0]
-        d = head - origin
-        c = rot.T @ d  # camera frame: x right, y up, looking along -z
-        if c[2] >= -1e-6:
-            return False, (0.0, 0.0)
-        u, v = c[0] / (-c[2]) / self._tan_h, c[1] / (-c[2]) / self._tan_v
-        if abs(u) > 1.0 or abs(v) > 1.0:
-            return False, (0.0, 0.0)
-        return self._unoccluded(origin, head, head_body[: head_body.index("/") + 1]), (float(u), float(v))
+        view and not occluded, and where (:meth:`tasks.crowd.Sight.person_in_view`)."""
+        return self.sight.person_in_view(head_body)
 
-    def _unoccluded(self, origin: np.ndarray, target: np.ndarray, prefix: str) -> bool:
-        m, d = self.model, self.data
-        direction = target - origin
-        dist = float(np.linalg.norm(direction))
-        direction = direction / dist
-        geom = np.zeros(1, np.int32)
-        start, travelled = origin.copy(), 0.0
-        for _ in range(8):  # skip the robot's own head and eyes around the camera
-            hit = mujoco.mj_ray(m, d, start, direction, None, 1, -1, geom)
-            if hit < 0 or travelled + hit >= dist + 0.15:
-                return False  # nothing on the way: the ray missed the head's geoms
-            name = m.body(int(m.geom_bodyid[geom[0]])).name
-            if any(name.startswith(p) for p in (names.PERSON, *names.BYSTANDERS)):
-                return name.startswith(prefix)  # a person: the one looked for, or another in the way
-            if not name.startswith(names.ROBOT):
-                return False
-            travelled += hit + 1e-4
-            start = origin + travelled * direction
-        return False
+    @property
+    def gaze_speed_deg_s(self) -> float:
+        """The gaze's angular speed (deg/s) over the last step."""
+        return self.sight.gaze_speed_deg_s
 
     # -- odometry ----------------------------------------------------------------------------------
     def _update_base(self) -> None:
         pos, rot = self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)
-        yaw = _yaw(rot)
+        yaw = yaw_of(rot)
         if self._base_prev is None:
             speed, rate = 0.0, 0.0
         else:
             p0, y0 = self._base_prev
             dt = 1.0 / self.metadata["render_fps"]
             speed = float(np.dot(pos[:2] - p0[:2], [math.cos(yaw), math.sin(yaw)]) / dt)
-            rate = _wrap(yaw - y0) / dt
+            rate = wrap(yaw - y0) / dt
         self._base_prev = (pos, yaw)
-        self._base = np.array([_wrap(yaw - self.initial_heading), np.clip(speed, -5, 5), np.clip(rate, -10, 10)], np.float32)
+        self._base = np.array([wrap(yaw - self.initial_heading), np.clip(speed, -5, 5), np.clip(rate, -10, 10)], np.float32)
 
     def _task_spaces(self) -> dict:
         return {"base": spaces.Box(np.array([-np.pi, -5.0, -10.0], np.float32), np.array([np.pi, 5.0, 10.0], np.float32))}
@@ -356,7 +327,7 @@ class CallResponseEnv(HearingTaskEnv):
                 if self.target_onset_s is None:
                     self.target_onset_s = float(e["time_s"])
         self._in_view, self._image_uv = self.person_in_view()
-        self._update_gaze_speed()
+        self.sight.update_gaze_speed(CONTROL_DT)
         if self.outcome != "running":
             return 0.0, True
         if self.look_s == 0.0 and self._in_view:  # the paper's check: in view, at any time
@@ -364,15 +335,7 @@ class CallResponseEnv(HearingTaskEnv):
         heard = self.target_onset_s is not None and self.time_s >= self.target_onset_s
         visible = ["caller"] if self._in_view else []
         visible += [b[:-1] for b, h in zip(names.BYSTANDERS, self.bystander_heads) if self.person_in_view(h)[0]]
-        if heard:
-            # Whoever is in view when the call starts was not turned to: they count once the
-            # gaze has left them and come back.
-            self._before_call = set(visible) if self._before_call is None else self._before_call & set(visible)
-        who = None
-        if heard and self.gaze_speed_deg_s < STILL_DEG_S:
-            who = next((v for v in visible if v not in self._before_call), None)
-        steps = self._look[1] + 1 if who is not None and who == self._look[0] else (1 if who else 0)
-        self._look = (who, steps)
+        who, steps = self._looking.update(visible, heard, self.sight.gaze_speed_deg_s < STILL_DEG_S)
         if who is not None and steps * CONTROL_DT >= self.look_s - 1e-9:
             return self._found(who)
         if heard and self.response_window_s is not None and self.time_s - self.target_onset_s > self.response_window_s:
@@ -386,14 +349,6 @@ class CallResponseEnv(HearingTaskEnv):
         self.outcome = "success" if who == "caller" else "wrong_person"
         return (1.0 if who == "caller" else 0.0), True
 
-    def _update_gaze_speed(self) -> None:
-        """The right eye's forward axis's angular speed in the world (deg/s) over the last step."""
-        forward = -self.view.camera_pose(names.EYE_CAMERAS[1])[1][:, 2]
-        if self._gaze_prev is not None:
-            c = float(np.clip(np.dot(forward, self._gaze_prev), -1.0, 1.0))
-            self.gaze_speed_deg_s = math.degrees(math.acos(c)) / CONTROL_DT
-        self._gaze_prev = forward
-
     def person_direction(self) -> np.ndarray:
         """Ground truth: unit vector (head frame) to the person's head."""
         c = self.coupling
@@ -404,7 +359,7 @@ class CallResponseEnv(HearingTaskEnv):
     def _task_info(self) -> dict:
         pos, rot = self.view.body_pose(names.WHEELCHAIR_CHASSIS_BODY)
         person = self.view.body_pose(names.PERSON_HEAD_BODY)[0]
-        bearing = math.degrees(_wrap(math.atan2(person[1] - pos[1], person[0] - pos[0]) - _yaw(rot)))
+        bearing = math.degrees(wrap(math.atan2(person[1] - pos[1], person[0] - pos[0]) - yaw_of(rot)))
         onset = self.target_onset_s
         reaction = None if self.found_s is None or onset is None else self.found_s - onset
         return {
@@ -423,4 +378,5 @@ class CallResponseEnv(HearingTaskEnv):
         }
 
 
-__all__ = ["CallResponseEnv"]
+__all__ = ["APART_DEG", "CROWD", "LOOK_S", "OUT_OF_VIEW_DEG", "PAPER_ROOM", "RESPONSE_WINDOW_S", "ROOM_SIZE", "STILL_DEG_S",
+           "CallResponseEnv"]

@@ -54,7 +54,83 @@ class ReverseAlarmEnv(CabinLeverTask):
     engine and road noise (the cabin's diffuse background, 40-55 dB SPL per episode). The ears
     hear all of it, with the robot's own motor noise, through the auditory pipeline.
 
-    {spaces_and_rewards}
+    Action Space
+    ------------
+    ``action_mode="joints"``: ``Box(-1, 1, (16,), float32)``, normalized targets; -1 and +1 are
+    the ends of the range.
+
+    ====  ========================  ==========  ===================
+    idx   channel                   range       unit
+    ====  ========================  ==========  ===================
+    0     neck_yaw (+ left)         -90 .. 90   deg
+    1     neck_pitch (+ nose down)  -45 .. 45   deg
+    2     eye_yaw (+ left)          -30 .. 30   deg
+    3     eye_pitch                 -25 .. 25   deg
+    4     left_shoulder_pitch       -45 .. 170  deg
+    5     left_shoulder_roll        -15 .. 120  deg
+    6     left_shoulder_yaw         -90 .. 90   deg
+    7     left_elbow                0 .. 145    deg
+    8     left_wrist                -70 .. 70   deg
+    9-13  right arm, same joints    same        deg
+    14    grasp_left                -1 .. 1     > 0 hold, <= 0 open
+    15    grasp_right               -1 .. 1     > 0 hold, <= 0 open
+    ====  ========================  ==========  ===================
+
+    Joint targets drive position servos (the ranges are the actuators' control ranges);
+    ``env.unwrapped.layout`` converts physical targets to actions. A grasp command > 0 closes an
+    open hand on its lever if the palm is within 5 cm of the handle; <= 0 opens it.
+
+    ``action_mode="skill"``: ``Box(-1, 1, (2,), float32)``; the zero action keeps everything as
+    it is (nothing moves, nothing lets go), the rest of the robot holds its rest pose
+    (:mod:`tasks.skills`).
+
+    ===  ==========  =======  ==================================================================
+    idx  component   range    meaning
+    ===  ==========  =======  ==================================================================
+    0    lever_rate  -1 .. 1  lever speed along the taught motion, x 20 deg/s (+ away from rest)
+    1    release     -1 .. 1  > 0.8 for 3 steps in a row opens the hand; else it holds
+    ===  ==========  =======  ==================================================================
+
+    Observation Space
+    -----------------
+    ``Dict``:
+
+    ===============  =========  ===================================================================
+    key              shape      meaning
+    ===============  =========  ===================================================================
+    joint_pos        (14,)      rad: neck yaw, pitch; eye yaw, pitch; left arm 5; right arm 5
+    joint_vel        (14,)      rad/s, same order (clipped to +-50)
+    grasp            (2,)       1 if the left / right hand holds its lever
+    class_prob       (6,)       the percept's fused class probabilities (car_horn, reverse_alarm,
+                                ratchet, gearshift, key_turning, human_voice)
+    class_dir        (18,)      per class, the estimated direction (unit vector, head frame: x
+                                forward, y left, z up), class k in entries 3k..3k+2; zeros when the
+                                class has no estimate
+    class_conf       (6,)       per class, the estimate's confidence 0..1 (0: no estimate)
+    tracked_dir      (18,)      per class, the world-frame tracker's direction seen from the head
+                                now (unit vector, head frame), from every frame heard this episode;
+                                zeros before any
+    tracked_conf     (6,)       per class, the tracker's posterior mass near its peak 0..1 (0:
+                                nothing heard yet)
+    tracked_decided  (6,)       per class, 1 when the tracker has decided front from back (a head
+                                turn moved the mirror image away), else 0
+    existence        (D,)       SSDENet existence map of the most likely class that has an
+                                estimate, over the D (327) grid directions; zeros if none
+    audio            (2, 706)   optional (``audio_obs``): the digital ear block, full scale
+    spectra          (2, 1025)  optional (``spectra_obs``): |X|^2 of the ear frame, full scale
+    image            (H, W, 3)  optional (``image_obs``): the right eye camera, uint8
+    ===============  =========  ===================================================================
+
+    Rewards
+    -------
+    ``reward_mode="sparse"``: +1 on success, -1 on failure, the time limit included (both at the
+    episode's end), 0 otherwise.
+
+    ``reward_mode="shaped"``: the sum of the terms that ``info`` reports each step in both
+    modes: ``reward_outcome`` (the sparse reward), ``reward_progress`` (the change of 0.3 x the
+    lever's progress toward the position the task asks for, 0 at rest, 1 there: a potential, so
+    over an episode it sums to at most 0.3) and ``reward_timing`` (on success, 0.5 x (1 -
+    reaction / success_window_s)). A success returns at least 1, a failure at most -0.7.
 
     Starting State
     --------------
@@ -90,7 +166,17 @@ class ReverseAlarmEnv(CabinLeverTask):
     Both are hidden: absent from the observation, in ``info["hidden"]``. The defaults
     (:data:`HIDDEN_VARIATION`) are the setting in which the lever angle and a clock no longer
     tell when and where the alarm comes; ``ReverseAlarmEnv(**PAPER_CAR)`` is the paper's car.
-    {common_arguments}
+    ``render_mode`` (str | None, default None): ``"rgb_array"`` for :meth:`render`.
+    ``profile`` (str, default "paper"): auditory models, ``"paper"`` or ``"fast"``.
+    ``hrtf`` (str, default "kemar"): the ears.
+    ``max_episode_s`` (float | None, default None): truncation time in s (None: 12 s).
+    ``action_mode`` (str, default "joints"): ``"joints"`` or ``"skill"`` (see Action Space).
+    ``reward_mode`` (str, default "sparse"): ``"sparse"`` or ``"shaped"`` (see Rewards).
+    ``audio_obs`` (bool, default False): add ``audio``.
+    ``spectra_obs`` (bool, default False): add ``spectra``.
+    ``image_obs`` (bool, default False): add ``image``.
+    ``image_size`` (tuple, default (120, 160)): (height, width) of ``image``, pixels.
+    ``torch_threads`` (int | None, default 1): torch threads while the pipeline runs.
     """
 
     task = "reverse-alarm"

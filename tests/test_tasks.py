@@ -52,6 +52,12 @@ def test_docstring_lists_every_observation_and_action(cls):
     doc = inspect.getdoc(cls)
     for key in env.observation_space.spaces:
         assert re.search(rf"\b{key}\b", doc), f"observation {key!r} is not in the docstring"
+    # The Observation Space table's keys and shapes are the space's (D: the grid, H, W: image_size).
+    table = doc.split("\nObservation Space\n")[1].split("\nRewards\n")[0]
+    rows = dict(re.findall(r"^(\w+) +(\([^)]*\)) ", table, re.MULTILINE))
+    sizes = {"D": len(env.pipeline.grid), "H": env.image_size[0], "W": env.image_size[1]}
+    shapes = {k: tuple(sizes[v] if v in sizes else int(v) for v in re.findall(r"\w+", shape)) for k, shape in rows.items()}
+    assert shapes == {k: space.shape for k, space in env.observation_space.spaces.items()}
     for name in env.layout.names:
         assert name in doc or name.split("_")[0] in ("left", "right"), f"action {name!r} is not in the docstring"
     assert env.action_space.shape == (16,)
@@ -60,7 +66,7 @@ def test_docstring_lists_every_observation_and_action(cls):
 
 @pytest.mark.parametrize("cls", CLASSES)
 def test_docstring_action_table_is_the_actuators_ranges(cls):
-    """The spec's action table (written once in tasks.spec) against the model's control ranges."""
+    """The spec's action table (the same in every task: tests/spec_docs.py) against the model's control ranges."""
     doc = inspect.getdoc(cls)
     layout = action_layout(cls.scene_name)
     rows = re.findall(r"^(\d+) +(\w+)[^\n]*? (-?\d+) \.\. (-?\d+) +(deg|rad/s|> 0 hold, <= 0 open)$", doc, re.MULTILINE)
@@ -76,17 +82,20 @@ def test_docstring_action_table_is_the_actuators_ranges(cls):
     assert f"``Box(-1, 1, ({len(layout)},), float32)``" in doc
 
 
-def test_spec_placeholders_are_expanded_or_refused():
-    from tasks import spec
-    from tasks.base import HearingTaskEnv
+def test_docstring_is_written_out_and_holds_the_shared_spec_word_for_word():
+    """The specification is text in the source (no template expanded at import), and the
+    parts every task shares are those of ``tests/spec_docs.py`` (the reward weights, the skill
+    tables, the default time limit), so neither drifts from the code or from the other tasks."""
+    import spec_docs
 
     for cls in CLASSES:
-        assert not re.search(r"^\s*\{\w+\}\s*$", inspect.getdoc(cls), re.MULTILINE), cls
-    assert spec.expand("Head.\n\n    {a}\n", {"a": "one\n\ntwo"}) == "Head.\n\n    one\n\n    two\n"
-    with pytest.raises(ConfigError, match="unknown placeholder {observations}"):
-        type("Broken", (HearingTaskEnv,), {"__doc__": "Spec.\n\n    {observations}\n"})
+        source = inspect.getsource(cls)
+        assert not re.search(r"^\s*\{\w+\}\s*$", cls.__doc__, re.MULTILINE), cls
+        assert cls.__doc__ in source, f"{cls.__name__}'s docstring is not written in its source"
+        for name, text in spec_docs.parts(cls).items():
+            assert spec_docs.indented(text) in cls.__doc__, f"{cls.__name__}'s docstring differs from the shared {name}"
     with pytest.raises(ConfigError, match="2 cells"):
-        spec.rst_table(("key", "meaning"), [("a", "b", "c")])
+        spec_docs.rst_table(("key", "meaning"), [("a", "b", "c")])
 
 
 def _rollout(env, policy_name, seed, steps):

@@ -1,34 +1,23 @@
-"""The parts of the tasks' specification docstrings that every task shares, written once.
+"""The generator of the task envs' shared specification text, kept for the tests only.
 
-A task's class docstring is its specification, in the Gymnasium style (Description, Action
-Space, Observation Space, Rewards, Starting State, Episode End, Arguments). The action and
-observation tables and the arguments common to every task are the same text in each, and a
-task family's rewards are written where they are computed; the docstring holds a
-placeholder line instead, which :meth:`tasks.base.HearingTaskEnv.__init_subclass__`
-expands when the class is created, so ``help(env)`` and ``inspect.getdoc`` show the whole
-specification:
-
-========================  =================================================================
-placeholder line          expands to
-========================  =================================================================
-``{spaces_and_rewards}``  the sections Action Space (the robot's joints, then the class's
-                          :attr:`~tasks.base.HearingTaskEnv.spec_action_rows` and
-                          :attr:`~tasks.base.HearingTaskEnv.spec_action_notes`),
-                          Observation Space (proprioception, the class's
-                          :attr:`~tasks.base.HearingTaskEnv.spec_observation_rows`, the
-                          percept, the optional keys) and Rewards
-                          (:attr:`~tasks.base.HearingTaskEnv.spec_rewards`)
-``{common_arguments}``    the constructor arguments every task has, one line each
-========================  =================================================================
+A task's class docstring is its specification in the Gymnasium style (Description, Action
+Space, Observation Space, Rewards, Starting State, Episode End, Arguments), written out in
+the task's source file. The action and observation tables, the rewards and the arguments
+every task shares are the same text in each; :func:`parts` writes them from the rows below
+and from the tasks' own constants (the reward weights, the skills' rows, the default time
+limits), and ``tests/test_tasks.py`` checks that each docstring holds them word for word, so
+the written text cannot drift from the code or from the other tasks (not a test module itself).
 """
 
 from __future__ import annotations
 
-import re
 import textwrap
 
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.errors import ConfigError
+from tasks.cabin import PROGRESS_WEIGHT, TIMING_WEIGHT
+from tasks.call_response import FACING_WEIGHT, TIME_WEIGHT
+from tasks.skills import LeverSkill, TurnSkill
 
 ROBOT_ACTION_ROWS: tuple[tuple[str, str, str, str], ...] = (
     ("0", "neck_yaw (+ left)", "-90 .. 90", "deg"),
@@ -82,13 +71,55 @@ COMMON_ARGUMENTS = """\
 ``torch_threads`` (int | None, default 1): torch threads while the pipeline runs."""
 """The arguments of every task, one line each: ``name`` (type, default value): meaning."""
 
+SCENES: dict[str, dict] = {
+    "cabin": {
+        "action_rows": (
+            ("14", "grasp_left", "-1 .. 1", "> 0 hold, <= 0 open"),
+            ("15", "grasp_right", "-1 .. 1", "> 0 hold, <= 0 open"),
+        ),
+        "action_notes": ("A grasp command > 0 closes an open hand on its lever if the palm is within 5 cm "
+                         "of the handle; <= 0 opens it."),
+        "observation_rows": (("grasp", "(2,)", "1 if the left / right hand holds its lever"),),
+        "rewards": "+1 on success, -1 on failure, the time limit included (both at the episode's end), 0 otherwise.",
+        "shaped_rewards": (
+            f"``reward_outcome`` (the sparse reward), ``reward_progress`` (the change of {PROGRESS_WEIGHT:g} x the "
+            "lever's progress toward the position the task asks for, 0 at rest, 1 there: a potential, so over an "
+            f"episode it sums to at most {PROGRESS_WEIGHT:g}) and ``reward_timing`` (on success, {TIMING_WEIGHT:g} x "
+            "(1 - reaction / success_window_s)). A success returns at least 1, a failure at most "
+            f"{PROGRESS_WEIGHT - 1:g}."),
+        "skill_rows": LeverSkill.rows,
+    },
+    "room": {
+        "action_rows": (
+            ("14", "left_wheel (+ forward)", "-5 .. 5", "rad/s"),
+            ("15", "right_wheel (+ forward)", "-5 .. 5", "rad/s"),
+        ),
+        "action_notes": ("The wheels (0.30 m radius, 0.60 m apart) are velocity servos: equal speeds drive, "
+                         "opposite speeds turn on the spot (right wheel forward turns left, 1 rad/s each way "
+                         "= 57 deg/s)."),
+        "observation_rows": (
+            ("base", "(3,)", ("the wheelchair's odometry: heading since the start (rad, +-pi, + left), forward speed "
+                              "(m/s), yaw rate (rad/s)")),
+        ),
+        "rewards": "+1 when the caller is looked at, 0 otherwise (``wrong_person``, ``too_late``, ``timeout``).",
+        "shaped_rewards": (
+            f"``reward_outcome`` (the sparse reward), ``reward_facing`` (the change of {FACING_WEIGHT:g} x "
+            "(1 - the angle between the head's forward and the person / 180 deg): a potential, summing over an "
+            f"episode to within +-{FACING_WEIGHT:g}) and ``reward_time`` (-{TIME_WEIGHT:g} / the episode's step limit "
+            f"each step). A success returns at least {1 - FACING_WEIGHT - TIME_WEIGHT:g}, a failure at most "
+            f"{FACING_WEIGHT:g}."),
+        "skill_rows": TurnSkill.rows,
+    },
+}
+"""Per scene (a task family): its action channels after the robot's joints (idx, channel,
+range, unit) and what they do, its observation rows after proprioception, the Rewards
+section's sparse and shaped text, and the ``skill`` action mode's rows."""
+
 MEANING_WIDTH = 67
 """Characters of the observation table's last column before it wraps."""
 
 PROSE_WIDTH = 92
 """Characters of a line of generated prose."""
-
-_PLACEHOLDER = re.compile(r"^(?P<indent>[ \t]*)\{(?P<name>\w+)\}[ \t]*$", re.MULTILINE)
 
 
 def rst_table(header: tuple[str, ...], rows, *, wrap_last: int | None = None) -> str:
@@ -125,29 +156,28 @@ def rst_table(header: tuple[str, ...], rows, *, wrap_last: int | None = None) ->
 
 
 def parts(cls) -> dict[str, str]:
-    """The placeholders' texts for a task class (see the module docstring)."""
-    n = sum(_channels(idx) for idx, *_ in (*ROBOT_ACTION_ROWS, *cls.spec_action_rows))
-    actions = rst_table(("idx", "channel", "range", "unit"), (*ROBOT_ACTION_ROWS, *cls.spec_action_rows))
+    """The shared texts of a task class's docstring: ``spaces_and_rewards`` (the sections
+    Action Space, Observation Space and Rewards) and ``common_arguments`` (the lines of the
+    arguments every task has, at the end of Arguments)."""
+    scene = SCENES[cls.scene_name]
+    n = sum(_channels(idx) for idx, *_ in (*ROBOT_ACTION_ROWS, *scene["action_rows"]))
+    actions = rst_table(("idx", "channel", "range", "unit"), (*ROBOT_ACTION_ROWS, *scene["action_rows"]))
     notes = ("Joint targets drive position servos (the ranges are the actuators' control ranges); "
-             "``env.unwrapped.layout`` converts physical targets to actions.")
-    if cls.spec_action_notes:
-        notes += " " + cls.spec_action_notes
-    observations = rst_table(("key", "shape", "meaning"), (*PROPRIOCEPTION_ROWS, *cls.spec_observation_rows, *PERCEPT_ROWS),
+             "``env.unwrapped.layout`` converts physical targets to actions. " + scene["action_notes"])
+    observations = rst_table(("key", "shape", "meaning"), (*PROPRIOCEPTION_ROWS, *scene["observation_rows"], *PERCEPT_ROWS),
                              wrap_last=MEANING_WIDTH)
     action = (f"``action_mode=\"joints\"``: ``Box(-1, 1, ({n},), float32)``, normalized targets; -1 and +1 are the "
               "ends of the range.")
     action = f"{textwrap.fill(action, PROSE_WIDTH)}\n\n{actions}\n\n{textwrap.fill(notes, PROSE_WIDTH)}"
-    rewards = textwrap.fill("``reward_mode=\"sparse\"``: " + cls.spec_rewards, PROSE_WIDTH)
-    if cls.skill_rows:
-        skill = (f"``action_mode=\"skill\"``: ``Box(-1, 1, ({len(cls.skill_rows)},), float32)``; the zero action keeps "
-                 "everything as it is (nothing moves, nothing lets go), the rest of the robot holds its rest pose "
-                 "(:mod:`tasks.skills`).")
-        table = rst_table(("idx", "component", "range", "meaning"), cls.skill_rows, wrap_last=MEANING_WIDTH)
-        action += f"\n\n{textwrap.fill(skill, PROSE_WIDTH)}\n\n{table}"
-    if cls.spec_shaped_rewards:
-        shaped = ("``reward_mode=\"shaped\"``: the sum of the terms that ``info`` reports each step in both modes: "
-                  + cls.spec_shaped_rewards)
-        rewards += "\n\n" + textwrap.fill(shaped, PROSE_WIDTH)
+    skill = (f"``action_mode=\"skill\"``: ``Box(-1, 1, ({len(scene['skill_rows'])},), float32)``; the zero action keeps "
+             "everything as it is (nothing moves, nothing lets go), the rest of the robot holds its rest pose "
+             "(:mod:`tasks.skills`).")
+    table = rst_table(("idx", "component", "range", "meaning"), scene["skill_rows"], wrap_last=MEANING_WIDTH)
+    action += f"\n\n{textwrap.fill(skill, PROSE_WIDTH)}\n\n{table}"
+    rewards = textwrap.fill("``reward_mode=\"sparse\"``: " + scene["rewards"], PROSE_WIDTH)
+    shaped = ("``reward_mode=\"shaped\"``: the sum of the terms that ``info`` reports each step in both modes: "
+              + scene["shaped_rewards"])
+    rewards += "\n\n" + textwrap.fill(shaped, PROSE_WIDTH)
     sections = (
         ("Action Space", action),
         ("Observation Space", f"``Dict``:\n\n{observations}"),
@@ -165,26 +195,10 @@ def _channels(idx: str) -> int:
     return int(last or first) - int(first) + 1
 
 
-def expand(doc: str | None, texts: dict[str, str], *, owner: str = "the class") -> str | None:
-    """``doc`` with each placeholder line ``{name}`` replaced by ``texts[name]``, indented
-    as the placeholder was.
-
-    Raises
-    ------
-    ConfigError
-        If ``doc`` has a placeholder line that ``texts`` does not know.
-    """
-    if doc is None:
-        return None
-
-    def replace(m: re.Match) -> str:
-        name = m.group("name")
-        if name not in texts:
-            raise ConfigError(f"{owner}'s docstring has an unknown placeholder {{{name}}}; known: {', '.join(sorted(texts))}")
-        indent = m.group("indent")
-        return "\n".join(indent + line if line else "" for line in texts[name].splitlines())
-
-    return _PLACEHOLDER.sub(replace, doc)
+def indented(text: str, indent: str = "    ") -> str:
+    """``text`` as it stands in a class docstring: each line indented, blank lines empty."""
+    return "\n".join(indent + line if line else "" for line in text.splitlines())
 
 
-__all__ = ["COMMON_ARGUMENTS", "PERCEPT_ROWS", "PROPRIOCEPTION_ROWS", "ROBOT_ACTION_ROWS", "expand", "parts", "rst_table"]
+__all__ = ["COMMON_ARGUMENTS", "PERCEPT_ROWS", "PROPRIOCEPTION_ROWS", "ROBOT_ACTION_ROWS", "SCENES", "indented", "parts",
+           "rst_table"]
