@@ -8,4 +8,9 @@ hrtf_figures
     (``hrtf_ild_ipd.json``).
 localization
     Experiments 3 and 4: direction estimation in simulation and in a room.
+active
+    ``eval active``: one head turn against front-back confusion (the scene in
+    ``active_scene``, the two-source scenes in ``active_pairs``).
+experiment_files
+    The output folder, compact JSON and figures of the HRTF experiments.
 """

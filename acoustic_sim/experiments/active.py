@@ -31,6 +31,10 @@ default with ``precedence="wavefront+coherence"``: the first wavefront at onsets
 them, the bins whose interaural coherence shows the direct sound (a continuous noise has one
 onset only). What each rule gave is in docs/notes/active_hearing.md.
 
+The scene (rendering, the head's turn, feeding the pipeline) is in
+:mod:`~acoustic_sim.experiments.active_scene`; the two-source scenes (``pairs.json``) in
+:mod:`~acoustic_sim.experiments.active_pairs`.
+
 ``--quick`` runs 3 + 1 directions, two sounds, turns of 0 and 30 deg and one two-source scene
 per room with the small models:
 every file with every key, for the tests. Its numbers are not the experiment's.
@@ -45,45 +49,26 @@ import numpy as np
 
 from acoustic_sim.acoustics import sounds
 from acoustic_sim.acoustics.hrtf import HRTF
-from acoustic_sim.acoustics.microphone import Microphone
-from acoustic_sim.acoustics.renderer import BinauralRenderer
-from acoustic_sim.acoustics.room import room_preset
 from acoustic_sim.auditory.pipeline import PRECEDENCE, AuditoryPipeline
 from acoustic_sim.auditory.tracker import DirectionTracker
 from acoustic_sim.directions import DirectionGrid, angular_error_deg
 from acoustic_sim.errors import ConfigError
+from acoustic_sim.experiments.active_pairs import (N_PAIRS, PAIR_MIN_SEPARATION_DEG, PAIR_ROOMS, PAIR_TOLERANCE_DEG,
+                                                   PAIR_TURN_DEG, PAIRS, draw_pair, pairs_summary, pairs_table, run_pair,
+                                                   run_pairs, summarize_pairs)
+from acoustic_sim.experiments.active_scene import (DISTANCE_M, LEAD_S, LEVEL_DB_SPL, SOUND_S, TURN_SPEED_DEG_S, TURN_START_S,
+                                                   WALL_CLEARANCE_M, head_yaw_deg, listen, render_scene, render_trial,
+                                                   source_distance)
 from acoustic_sim.experiments.localization import noise_floor
 from acoustic_sim.files import check_writable_folder
-from acoustic_sim.frames import SAMPLE_RATE, rotation_zyx, sph_to_vec, vec_to_sph
+from acoustic_sim.frames import vec_to_sph
 from acoustic_sim.progress import progress_bar
 
 ROOMS = ("lab", "car_cabin")
 """The rooms of the experiment."""
 
-DISTANCE_M = {"lab": 1.5, "car_cabin": 0.8, "anechoic": 1.5}
-"""Source distance per room (m); a source is brought nearer where a wall is closer than
-:data:`WALL_CLEARANCE_M` beyond it."""
-
-WALL_CLEARANCE_M = 0.05
-"""Least distance (m) between a source and the room's walls."""
-
 TURNS_DEG = (0.0, 10.0, 15.0, 30.0, 45.0)
 """Head turns of the experiment (deg; 0 is the still head)."""
-
-TURN_SPEED_DEG_S = 90.0
-"""Speed of the head turn (deg/s): a 30 deg turn takes a third of a second."""
-
-TURN_START_S = 0.25
-"""When the turn starts, after the sound's start (s)."""
-
-SOUND_S = 1.5
-"""Length of each sound (s)."""
-
-LEAD_S = 0.1
-"""Room background before the sound starts (s)."""
-
-LEVEL_DB_SPL = (73.0, 76.0)
-"""The sound's level at the head (dB SPL), drawn per trial as in the paper's room experiment."""
 
 FRONTAL_MARGIN_DEG = 10.0
 """Front-back confusions are counted over sources at least this far (deg) from the frontal
@@ -91,9 +76,6 @@ plane (the head's x = 0 at the final pose)."""
 
 PRECEDENCE_DEFAULT = "wavefront+coherence"
 """The pipeline's evidence rule in the experiment (:data:`~acoustic_sim.auditory.pipeline.PRECEDENCE`)."""
-
-N_PAIRS = 50
-"""Two-source scenes per room (:func:`run_pair`)."""
 
 N_HORIZONTAL, N_OFF_PLANE = 100, 50
 """Directions per room: on the horizontal plane and off it (elevation 10-60 deg up or
@@ -110,61 +92,6 @@ def draw_directions(rng: np.random.Generator, n_horizontal: int, n_off_plane: in
     el[n_horizontal:] = np.where(up, rng.uniform(10.0, 60.0, n_off_plane), -rng.uniform(10.0, 40.0, n_off_plane))
     a, e = np.deg2rad(az), np.deg2rad(el)
     return np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=1)
-
-
-def source_distance(space, head: np.ndarray, direction: np.ndarray, distance_m: float) -> float:
-    """``distance_m``, or less so that the source stays :data:`WALL_CLEARANCE_M` inside the room."""
-    if space.anechoic:
-        return distance_m
-    lo = np.zeros(3) + WALL_CLEARANCE_M
-    hi = np.asarray(space.dimensions, float) - WALL_CLEARANCE_M
-    reach = np.inf
-    for i in range(3):
-        if direction[i] > 1e-9:
-            reach = min(reach, (hi[i] - head[i]) / direction[i])
-        elif direction[i] < -1e-9:
-            reach = min(reach, (lo[i] - head[i]) / direction[i])
-    return float(min(distance_m, reach))
-
-
-def head_yaw_deg(t_s: float, turn_deg: float, sign: float) -> float:
-    """The head's yaw (deg) at ``t_s`` after the sound's start: still, a turn of
-    ``sign * turn_deg`` from :data:`TURN_START_S` at :data:`TURN_SPEED_DEG_S`, then held."""
-    moved = np.clip((t_s - TURN_START_S) * TURN_SPEED_DEG_S, 0.0, turn_deg)
-    return float(sign * moved)
-
-
-def render_trial(hrtf: HRTF, room: str, direction: np.ndarray, sound: str, turn_deg: float, sign: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, list]:
-    """Digital ear signals (2, n) of one trial and the head's poses: a list of
-    ``(time_s, rotation)`` per control block (time from the recording's start)."""
-    return render_scene(hrtf, room, [(sound, direction)], turn_deg, sign, rng)
-
-
-def render_scene(hrtf: HRTF, room: str, sources, turn_deg: float, sign: float,
-                 rng: np.random.Generator) -> tuple[np.ndarray, list]:
-    """:func:`render_trial` with several ``(sound, world direction)`` sources at once, each at
-    its own level drawn from :data:`LEVEL_DB_SPL`."""
-    space = room_preset(room)
-    head = np.asarray(space.listener, float)
-    r = BinauralRenderer(hrtf, space, rng=rng)
-    start = int(round(LEAD_S * SAMPLE_RATE))
-    r.set_head_pose(head, rotation_zyx(0.0))
-    for i, (sound, direction) in enumerate(sources):
-        level = float(rng.uniform(*LEVEL_DB_SPL))
-        dist = source_distance(space, head, direction, DISTANCE_M.get(room, 1.5))
-        x = sounds.generate(sound, rng, seconds=SOUND_S)
-        r.add_source(f"source{i}", x, head + dist * np.asarray(direction, float),
-                     level_db=level + 20 * math.log10(dist), start=start)
-    total = int(round((LEAD_S + SOUND_S) * SAMPLE_RATE))
-    blocks, poses = [], []
-    while r.sample < total:
-        t = r.sample / SAMPLE_RATE
-        rot = rotation_zyx(head_yaw_deg(t - LEAD_S, turn_deg, sign))
-        r.set_head_pose(head, rot)
-        poses.append((t, rot))
-        blocks.append(r.render_block())  # one control block: the pose holds within it
-    return Microphone(rng=rng)(np.concatenate(blocks, axis=1)), poses
 
 
 def _mirror_nearer(est: np.ndarray, truth: np.ndarray) -> bool:
@@ -192,19 +119,13 @@ def run_trial(pipe: AuditoryPipeline, hrtf: HRTF, room: str, direction: np.ndarr
     ``pipe`` has a tracker and attends to ``sound`` (:meth:`AuditoryPipeline.attend`)."""
     sign = 1.0 if rng.random() < 0.5 else -1.0
     audio, poses = render_trial(hrtf, room, direction, sound, turn_deg, sign, rng)
-    pipe.reset()
     decided_at = None
     last = None
-    at = 0
-    for (t, rot), (t_next, _) in zip(poses, poses[1:] + [(audio.shape[1] / SAMPLE_RATE, None)]):
-        pipe.note_pose(t, rot)
-        end = int(round(t_next * SAMPLE_RATE))
-        for p in pipe.process(audio[:, at:end]):
-            last = p
-            tr = p.tracked.get(sound)
-            if decided_at is None and tr is not None and tr.decided and p.time_s > LEAD_S:
-                decided_at = p.time_s - LEAD_S
-        at = end
+    for p in listen(pipe, audio, poses):
+        last = p
+        tr = p.tracked.get(sound)
+        if decided_at is None and tr is not None and tr.decided and p.time_s > LEAD_S:
+            decided_at = p.time_s - LEAD_S
     final = poses[-1][1]
     truth_head = final.T @ direction
     rec = {
@@ -224,84 +145,6 @@ def run_trial(pipe: AuditoryPipeline, hrtf: HRTF, room: str, direction: np.ndarr
     rec["tracked"]["decided"] = bool(tr is not None and tr.decided)
     rec["tracked"]["decision_s"] = None if decided_at is None else round(decided_at, 4)
     return rec
-
-
-PAIRS = (("reverse_alarm", "human_voice"), ("ratchet", "car_horn"), ("gearshift", "key_turning"))
-"""Sound pairs played at once (issue 33): classes of different spectra."""
-
-PAIR_ROOMS = ("anechoic", "car_cabin", "lab")
-"""Rooms of the two-source measurement."""
-
-PAIR_MIN_SEPARATION_DEG = 30.0
-"""Least azimuth difference between the two sources of a pair (deg)."""
-
-PAIR_TOLERANCE_DEG = 15.0
-"""A source of a pair counts as localized within this angle (deg)."""
-
-PAIR_TURN_DEG = 30.0
-"""The head turn of the pairs' tracked condition (deg)."""
-
-
-def draw_pair(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Two horizontal-plane directions at least :data:`PAIR_MIN_SEPARATION_DEG` apart."""
-    a = rng.uniform(-180.0, 180.0)
-    b = a + rng.uniform(PAIR_MIN_SEPARATION_DEG, 360.0 - PAIR_MIN_SEPARATION_DEG)
-    return sph_to_vec(a, 0.0), sph_to_vec(((b + 180.0) % 360.0) - 180.0, 0.0)
-
-
-def run_pair(pipe: AuditoryPipeline, hrtf: HRTF, room: str, pair, directions, turn_deg: float,
-             rng: np.random.Generator) -> dict:
-    """Both sounds of ``pair`` at once from ``directions``: per sound, whether the MelCNN
-    detected it (its fused probability at the threshold in some frame) and the error of the
-    pipeline's head-frame estimate (still head) or of the tracker's (``turn_deg`` > 0) at the
-    end. ``pipe`` attends to both sounds."""
-    sign = 1.0 if rng.random() < 0.5 else -1.0
-    audio, poses = render_scene(hrtf, room, list(zip(pair, directions)), turn_deg, sign, rng)
-    pipe.reset()
-    peak = dict.fromkeys(pair, 0.0)
-    last, at = None, 0
-    for (t, rot), (t_next, _) in zip(poses, poses[1:] + [(audio.shape[1] / SAMPLE_RATE, None)]):
-        pipe.note_pose(t, rot)
-        end = int(round(t_next * SAMPLE_RATE))
-        for p in pipe.process(audio[:, at:end]):
-            last = p
-            for name in pair:
-                peak[name] = max(peak[name], p.probability(name))
-        at = end
-    final = poses[-1][1]
-    out = {"room": room, "pair": list(pair), "turn_deg": float(turn_deg),
-           "azimuth_deg": [round(float(vec_to_sph(d)[0]), 2) for d in directions], "sources": []}
-    for name, d in zip(pair, directions):
-        if turn_deg == 0.0:
-            e = last.directions.get(name)
-            est = None if e is None else final @ e.vector
-        else:
-            e = last.tracked.get(name)
-            est = None if e is None else e.world_vector
-        err = None if est is None else round(float(angular_error_deg(est, d)), 2)
-        out["sources"].append({"sound": name, "detected": bool(peak[name] >= pipe.threshold), "error_deg": err})
-    both = all(s["detected"] and s["error_deg"] is not None and s["error_deg"] <= PAIR_TOLERANCE_DEG
-               for s in out["sources"])
-    out["both"] = bool(both)
-    return out
-
-
-def summarize_pairs(records: list[dict]) -> dict:
-    """Per room and condition (``static``, ``tracked_30``): the share of pairs with both
-    sounds detected and localized within :data:`PAIR_TOLERANCE_DEG`, the share of sounds
-    detected, and ``n``."""
-    out: dict = {}
-    for room in sorted({r["room"] for r in records}):
-        out[room] = {}
-        for turn in sorted({r["turn_deg"] for r in records}):
-            sel = [r for r in records if r["room"] == room and r["turn_deg"] == turn]
-            key = "static" if turn == 0.0 else f"tracked_{turn:g}"
-            out[room][key] = {
-                "n": len(sel),
-                "both_localized": round(float(np.mean([r["both"] for r in sel])), 4),
-                "detected": round(float(np.mean([s["detected"] for r in sel for s in r["sources"]])), 4),
-            }
-    return out
 
 
 def summarize(records: list[dict]) -> dict:
@@ -350,29 +193,6 @@ def _trials(pipe, ears, rooms, dirs, names, turns, rng, records, progress) -> No
                     records.append(rec)
                     bar.update()
     bar.close()
-
-
-def _pairs(pipe, ears, n, rng, progress) -> list[dict]:
-    """The two-source scenes: ``n`` per room of :data:`PAIR_ROOMS`, the pairs of
-    :data:`PAIRS` in turn, each with the head still and turning :data:`PAIR_TURN_DEG`."""
-    records: list[dict] = []
-    if n == 0:
-        return records
-    bar = progress_bar(total=len(PAIR_ROOMS) * n * 2, desc="pairs", unit="scene", disable=not progress)
-    for room in PAIR_ROOMS:
-        pipe.set_noise_power(noise_floor(ears, rng=rng, room=room))
-        for i in range(n):
-            pair = PAIRS[i % len(PAIRS)]
-            directions = draw_pair(rng)
-            pipe.reset()
-            pipe.clear_attention()
-            for name in pair:
-                pipe.attend(name)
-            for turn in (0.0, PAIR_TURN_DEG):
-                records.append(run_pair(pipe, ears, room, pair, directions, turn, rng))
-                bar.update()
-    bar.close()
-    return records
 
 
 def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horizontal: int = N_HORIZONTAL,
@@ -426,7 +246,7 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
     torch.set_num_threads(1)  # the networks are small: more threads busy-wait against the renderer's BLAS
     try:
         _trials(pipe, ears, rooms, dirs, names, turns, rng, records, progress)
-        pair_records = _pairs(pipe, ears, pairs, rng, progress)
+        pair_records = run_pairs(pipe, ears, pairs, rng, progress)
     finally:
         torch.set_num_threads(threads)
     summary = {
@@ -441,11 +261,7 @@ def run_active(*, out, hrtf="kemar", profile: str = "fast", rooms=ROOMS, n_horiz
         "targets": {"front_back_confusion_max": 0.05, "mean_azimuth_error_deg_max": 10.0, "turn_deg_max": 30.0},
     }
     if pair_records:
-        summary["pairs"] = {
-            "rooms": summarize_pairs(pair_records), "per_room": int(pairs), "sounds": [list(p) for p in PAIRS],
-            "min_separation_deg": PAIR_MIN_SEPARATION_DEG, "tolerance_deg": PAIR_TOLERANCE_DEG,
-            "targets": {"anechoic_min": 0.8, "rooms_min": 0.6},
-        }
+        summary["pairs"] = pairs_summary(pair_records, pairs)
     from acoustic_sim.experiments.report import write_json
     write_json(out / "trials.json", records)
     if pair_records:
@@ -499,23 +315,6 @@ def table(summary: dict) -> str:
             md = "-" if s.get("median_decision_s") is None else f"{s['median_decision_s']:.2f}"
             lines.append(f"| {room} | {est} | {turn} | {fb} | {s['mean_azimuth_error_deg']:.1f} | "
                          f"{s['mean_error_deg']:.1f} | {dec} | {md} | {s['n']} |")
-    return "\n".join(lines) + "\n"
-
-
-def pairs_table(summary: dict) -> str:
-    """The two-source results as a Markdown table ('' without them)."""
-    p = summary.get("pairs")
-    if not p:
-        return ""
-    lines = [f"Two sounds at once ({', '.join(' + '.join(x) for x in p['sounds'])}; {p['per_room']} scenes per room, "
-             f"at least {p['min_separation_deg']:g} deg apart): the share of scenes with both detected and each "
-             f"localized within {p['tolerance_deg']:g} deg (targets: {p['targets']['anechoic_min']} anechoic, "
-             f"{p['targets']['rooms_min']} in the rooms).\n",
-             "| room | estimate | both localized | sounds detected | scenes |", "|---|---|---|---|---|"]
-    for room, res in p["rooms"].items():
-        for key, s in res.items():
-            est = "still head, head frame" if key == "static" else f"tracked, {key.split('_', 1)[1]} deg turn"
-            lines.append(f"| {room} | {est} | {s['both_localized']:.2f} | {s['detected']:.2f} | {s['n']} |")
     return "\n".join(lines) + "\n"
 
 
@@ -573,3 +372,12 @@ def update_readme(readme, results_dir, image_prefix: str = "results/active") -> 
 
     return replace_section(readme, BEGIN, END, readme_section(results_dir, image_prefix))
 
+
+__all__ = [  # with the names of active_scene and active_pairs, which this module's users import from here
+    "BEGIN", "END", "DISTANCE_M", "FRONTAL_MARGIN_DEG", "LEAD_S", "LEVEL_DB_SPL", "N_HORIZONTAL", "N_OFF_PLANE", "N_PAIRS",
+    "PAIRS", "PAIR_MIN_SEPARATION_DEG", "PAIR_ROOMS", "PAIR_TOLERANCE_DEG", "PAIR_TURN_DEG", "PRECEDENCE_DEFAULT",
+    "ROOMS", "SOUND_S", "TURNS_DEG", "TURN_SPEED_DEG_S", "TURN_START_S", "WALL_CLEARANCE_M", "draw_directions",
+    "draw_pair", "figure", "head_yaw_deg", "listen", "pairs_summary", "pairs_table", "readme_section",
+    "render_scene", "render_trial", "report", "run_active", "run_pair", "run_pairs", "run_trial",
+    "source_distance", "summarize", "summarize_pairs", "table", "update_readme",
+]

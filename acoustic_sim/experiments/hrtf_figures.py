@@ -29,11 +29,9 @@ where no minimum qualifies.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy.signal import find_peaks
 
@@ -42,7 +40,7 @@ from acoustic_sim.auditory.features import ild_ipd
 from acoustic_sim.auditory.frontend import N_FFT, bin_frequencies, frequency_to_bin
 from acoustic_sim.directions import DirectionGrid
 from acoustic_sim.errors import ConfigError, HRTFError
-from acoustic_sim.files import atomic_path, write_text
+from acoustic_sim.experiments.experiment_files import output_folder, rounded, save_figure, write_compact_json
 from acoustic_sim.frames import vec_to_sph
 
 PAPER_FREQUENCIES_HZ = (301.5, 560.0, 990.5, 5706.3, 8548.7, 11994.0)
@@ -76,42 +74,6 @@ def _hrtf(spec, what: str) -> HRTF:
     if isinstance(spec, str):
         return HRTF.load(spec)
     raise HRTFError(f"{what} must be an HRTF or a name/path for HRTF.load, got {spec!r}")
-
-
-def _out_dir(out_dir) -> Path:
-    path = Path(out_dir)
-    if path.exists() and not path.is_dir():
-        raise ConfigError(f"output folder {path} exists and is not a folder")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def _dumps(obj, indent: int = 0) -> str:
-    """JSON with dicts and lists of containers indented, lists of scalars on one line (the
-    long numeric arrays stay compact and diffs stay readable)."""
-    pad, inner = " " * indent, " " * (indent + 1)
-    if isinstance(obj, dict):
-        if not obj:
-            return "{}"
-        items = [f"{inner}{json.dumps(str(k))}: {_dumps(v, indent + 1)}" for k, v in obj.items()]
-        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
-    if isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj):
-        return "[\n" + ",\n".join(inner + _dumps(v, indent + 1) for v in obj) + "\n" + pad + "]"
-    return json.dumps(obj, allow_nan=False)
-
-
-def _write_json(path: Path, data: dict) -> None:
-    write_text(path, _dumps(data) + "\n")
-
-
-def _save(fig: Figure, path: Path) -> None:
-    FigureCanvasAgg(fig)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-
-
-def _rounded(a, digits: int) -> list:
-    return np.round(np.asarray(a, dtype=float), digits).tolist()
 
 
 # --------------------------------------------------------------------------------------
@@ -185,7 +147,7 @@ def pinna(out_dir, hrtf_with="kemar", hrtf_without="spherical") -> dict:
     median-plane directions) of the response: how much the response changes with
     elevation (the paper: little without pinnae, a lot with them).
     """
-    out = _out_dir(out_dir)
+    out = output_folder(out_dir)
     heads = {"with_pinna": _hrtf(hrtf_with, "hrtf_with"), "without_pinna": _hrtf(hrtf_without, "hrtf_without")}
     for h in heads.values():
         if h.sample_rate != 44100:
@@ -202,7 +164,7 @@ def pinna(out_dir, hrtf_with="kemar", hrtf_without="spherical") -> dict:
         "experiment": "median-plane frequency response with and without pinnae",
         "ear": "left",
         "unit": "dB re free-field pressure at the head centre",
-        "frequencies_hz": _rounded(freqs[keep], 3),
+        "frequencies_hz": rounded(freqs[keep], 3),
         "directions": [
             {"polar_angle_deg": round(float(p), 3), "azimuth_deg": round(float(a), 3), "elevation_deg": round(float(e), 3),
              "side": "front" if p < 90.0 - 1e-6 else ("top" if abs(p - 90.0) < 1e-6 else "back")}
@@ -222,9 +184,9 @@ def pinna(out_dir, hrtf_with="kemar", hrtf_without="spherical") -> dict:
         result[key] = {
             "hrtf": h.name,
             "ident": h.ident,
-            "measured_azimuth_deg": _rounded(az, 3),
-            "measured_elevation_deg": _rounded(el, 3),
-            "magnitude_db": _rounded(db[:, keep], 1),
+            "measured_azimuth_deg": rounded(az, 3),
+            "measured_elevation_deg": rounded(el, 3),
+            "magnitude_db": rounded(db[:, keep], 1),
             "notch_hz": [None if f is None else round(f, 1) for f, _ in notches],
             "notch_depth_db": [None if d is None else round(d, 2) for _, d in notches],
             "notch_count": len(found),
@@ -232,7 +194,7 @@ def pinna(out_dir, hrtf_with="kemar", hrtf_without="spherical") -> dict:
             "elevation_spread_db": round(float(np.median(np.ptp(db[:, spread_band], axis=0))), 2),
         }
     _pinna_figure(result, psi, out / "pinna.png")
-    _write_json(out / "pinna.json", result)
+    write_compact_json(out / "pinna.json", result)
     return result
 
 
@@ -260,7 +222,7 @@ def _pinna_figure(result: dict, psi: np.ndarray, path: Path) -> None:
     axes[0].set_yticks(ticks, [_polar_label(p) for p in ticks])
     axes[0].set_ylabel("elevation (deg; B = behind)")
     fig.colorbar(mesh, ax=axes, label="magnitude (dB re free field at head centre)")
-    _save(fig, path)
+    save_figure(fig, path)
 
 
 # --------------------------------------------------------------------------------------
@@ -295,7 +257,7 @@ def hrtf_ild_ipd(out_dir, hrtf="kemar") -> dict:
         ``ild_range_ratio`` (mean of the high three over the low three, ours and the paper's),
         ``figures``.
     """
-    out = _out_dir(out_dir)
+    out = output_folder(out_dir)
     h = _hrtf(hrtf, "hrtf")
     if h.sample_rate != 44100:
         raise HRTFError(f"HRTF {h.name!r} is at {h.sample_rate} Hz; the ear front end runs at 44100 Hz")
@@ -315,11 +277,11 @@ def hrtf_ild_ipd(out_dir, hrtf="kemar") -> dict:
         "hrtf": h.name,
         "ident": h.ident,
         "grid": {"name": grid.name, "ident": grid.ident, "size": len(grid)},
-        "directions": {"azimuth_deg": _rounded(grid.azimuth_deg, 3), "elevation_deg": _rounded(grid.elevation_deg, 3)},
+        "directions": {"azimuth_deg": rounded(grid.azimuth_deg, 3), "elevation_deg": rounded(grid.elevation_deg, 3)},
         "frequencies": [{"requested_hz": r, "bin": int(b), "frequency_hz": round(float(f), 3)}
                         for r, b, f in zip(PAPER_FREQUENCIES_HZ, bins, exact)],
-        "ild": _rounded(ild, 4),
-        "ipd_rad": _rounded(ipd, 4),
+        "ild": rounded(ild, 4),
+        "ipd_rad": rounded(ipd, 4),
         "ild_range_definition": ("max over the grid directions of |ILD| (natural log); for a left-right symmetric "
                                  "head this is half of max - min, which is also given"),
         "ild_range": [{"frequency_hz": round(float(f), 3), "ours": round(float(m), 3), "max_minus_min": round(float(s), 3),
@@ -336,7 +298,7 @@ def hrtf_ild_ipd(out_dir, hrtf="kemar") -> dict:
     }
     _map_figure(grid, ild, exact, out / "hrtf_ild.png", "ILD (natural log)", "RdBu_r", symmetric=True)
     _map_figure(grid, ipd, exact, out / "hrtf_ipd.png", "IPD = arg(A_l / A_r) (rad)", "twilight", symmetric=False)
-    _write_json(out / "hrtf_ild_ipd.json", result)
+    write_compact_json(out / "hrtf_ild_ipd.json", result)
     return result
 
 
@@ -399,4 +361,4 @@ def _map_figure(grid: DirectionGrid, values: np.ndarray, freqs: np.ndarray, path
     for ax in axes[:, 0]:
         ax.set_ylabel("elevation (deg)")
     fig.suptitle(label)
-    _save(fig, path)
+    save_figure(fig, path)

@@ -33,7 +33,6 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 from scipy import signal as sp_signal
-from acoustic_sim.progress import progress_bar
 
 from acoustic_sim.acoustics import sounds
 from acoustic_sim.acoustics.microphone import Microphone
@@ -46,6 +45,7 @@ from acoustic_sim.auditory.ssdenet import DEFAULT_FUSION, LEAKAGE, check_fusion,
 from acoustic_sim.directions import DirectionGrid, angular_error_deg, is_front, is_left, is_up
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample, rotation_zyx, sph_to_vec, vec_to_sph
+from acoustic_sim.progress import progress_bar
 
 Estimator = Callable[[np.ndarray, np.ndarray], np.ndarray]
 AudioEstimator = Callable[[np.ndarray, np.ndarray], np.ndarray]
