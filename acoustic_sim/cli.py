@@ -202,9 +202,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "(the paper's networks; several minutes of training the first time)")
     d.set_defaults(func=cmd_demo)
 
-    from acoustic_sim import cli_auditory, cli_world
+    from acoustic_sim import cli_auditory, cli_eval, cli_world
 
     cli_auditory.add_parsers(sub)
+    cli_eval.add_parsers(sub)
     cli_world.add_parsers(sub)
     from apps import deaf_search, runner
 

@@ -30,7 +30,8 @@ class WouldBuild(AssertionError):
 def guard(monkeypatch):
     """Make every model, env, benchmark and experiment fail loudly if a case reaches it."""
     from apps import runner
-    from acoustic_sim.auditory import melcnn, ssdenet, ssdenet_training
+    from acoustic_sim.auditory import melcnn, ssdenet
+    from acoustic_sim.auditory.ssdenet import bank as ssdenet_training
     from acoustic_sim.experiments import hrtf_figures
     from apps import eval_tasks as tasks_experiment
 

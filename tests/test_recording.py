@@ -237,7 +237,8 @@ def test_every_read_asks_for_at_most_a_block(long_wav, reads, kemar):
 @pytest.fixture
 def no_models(monkeypatch, tmp_path):
     """An empty model cache, and every way to load or train SSDENet or MelCNN raises."""
-    from acoustic_sim.auditory import melcnn, ssdenet, ssdenet_training
+    from acoustic_sim.auditory import melcnn, ssdenet
+    from acoustic_sim.auditory.ssdenet import bank as ssdenet_training
 
     cache = tmp_path / "cache"
     cache.mkdir()

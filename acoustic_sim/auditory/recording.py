@@ -9,23 +9,11 @@ file: the last ``window`` frames (spectra or existence maps) for the running est
 last 24 mel frames for the MelCNN's patches, and running sums for the overall result. So
 memory is the same for 2 s and for an hour (``docs/notes/streaming.md`` has the numbers).
 
-Agreement with the in-memory functions (:meth:`AuditoryPipeline.localize
-<acoustic_sim.auditory.pipeline.AuditoryPipeline.localize>`,
-:func:`~acoustic_sim.auditory.pipeline.detect_recording`), which hold the whole recording:
-
-- samples: the same (a file at 44.1 kHz is read as is; another rate is resampled by
-  :class:`StreamResampler`, which gives ``scipy.signal.resample_poly``'s output exactly);
-- per frame, detection and MUSIC / GCC-PHAT: each frame's result is computed from the same
-  frames (:data:`CHUNK_FRAMES` is the MelCNN batch of :func:`detect_recording`); the tests
-  allow float32 rounding (1e-6);
-- per frame, SSDENet: the running sum of the last ``window`` existence maps is summed
-  directly (float64) where the in-memory path takes differences of a float32 cumulative sum
-  over the whole recording, which loses digits as the recording grows (at an hour the sum is
-  ~10^7 times a frame's map, and float32 keeps ~7 digits); the two agree to float32
-  rounding on short recordings;
-- overall: sums over all frames (maps, correlation matrices, cross-spectra) are accumulated
-  per chunk in float64 / complex128 instead of in one float32 sum; they agree to float32
-  rounding (tests: 1e-5 relative).
+The samples are those of the in-memory functions, which hold the whole recording (a file
+at 44.1 kHz is read as is; another rate is resampled by :class:`StreamResampler`, which gives
+``scipy.signal.resample_poly``'s output exactly). The running estimates
+(:class:`SSDENetTrack`, :class:`BaselineTrack`, :class:`DetectTrack`) and how they agree with
+the in-memory results are in :mod:`~acoustic_sim.auditory.recording_tracks`, re-exported here.
 """
 
 from __future__ import annotations
@@ -36,21 +24,29 @@ from pathlib import Path
 
 import numpy as np
 
-from acoustic_sim.auditory.frontend import N_BINS, EarFrontEnd, Frames
+from acoustic_sim.auditory.frontend import EarFrontEnd, Frames
+from acoustic_sim.auditory.recording_tracks import DETECT_BATCH, BaselineTrack, DetectTrack, SSDENetTrack
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE
+
+__all__ = [
+    "BLOCK_SAMPLES",
+    "CHUNK_FRAMES",
+    "DETECT_BATCH",
+    "BaselineTrack",
+    "DetectTrack",
+    "SSDENetTrack",
+    "StreamResampler",
+    "frame_chunks",
+    "wav_blocks",
+    "wav_info",
+]
 
 BLOCK_SAMPLES = 1 << 16
 """Samples (per channel) read from the file at a time: 1.5 s at 44.1 kHz, 1 MB as float64."""
 
 CHUNK_FRAMES = 256
 """Ear frames handed on at a time (4.1 s; 4 MB of spectra): the MelCNN's batch."""
-
-
-DETECT_BATCH = 16
-"""Frames whose patches the MelCNN runs on at once (both ears: 32 patches). The paper model's
-activations cost about 1 MB a patch at peak; 16 frames keep ``detect`` under 450 MB and are
-faster than 64 (docs/notes/streaming.md)."""
 
 
 class StreamResampler:
@@ -200,202 +196,3 @@ def _join(parts: list[Frames]) -> Frames:
         return parts[0]
     return Frames(np.concatenate([p.index for p in parts]), np.concatenate([p.time_s for p in parts]),
                   np.concatenate([p.spectra for p in parts]))
-
-
-def _window_sums(history: np.ndarray, new: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per row of ``new`` (K, ...), the float64 sum of it and the ``window - 1`` rows before it,
-    given the ``window - 1`` rows before ``new`` (``history``, zeros before the recording).
-    Returns the sums (K, ...) and the new history."""
-    rows = np.concatenate([history, new])
-    csum = np.cumsum(rows, axis=0, dtype=np.float64)
-    lead = np.zeros((1,) + rows.shape[1:])
-    csum = np.concatenate([lead, csum])
-    k = new.shape[0]
-    sums = csum[window : window + k] - csum[:k]
-    return sums, rows[rows.shape[0] - (window - 1) :].copy() if window > 1 else rows[:0].copy()
-
-
-class SSDENetTrack:
-    """``AuditoryPipeline.localize(method="ssdenet")`` of a recording pushed in chunks of frames.
-
-    Keeps the last ``window - 1`` frames' maps and the sum of all of them. ``pipe`` is an
-    :class:`~acoustic_sim.auditory.pipeline.AuditoryPipeline` (its SSDENet bank, validity
-    test and fusion; MelCNN's characteristic bins when ``sound`` is given).
-    """
-
-    method = "ssdenet"
-
-    def __init__(self, pipe, *, sound: str | None = None, window: int = 25) -> None:
-        if window < 1:
-            raise ConfigError(f"window must be >= 1, got {window}")
-        self.pipe = pipe
-        self.window = int(window)
-        self.mask = None
-        if sound is not None:
-            if sound not in pipe.classes:
-                raise ConfigError(f"unknown sound class {sound!r}; valid: {', '.join(pipe.classes)}")
-            self.mask = np.zeros(N_BINS, bool)
-            self.mask[pipe.ssdenet.bins[pipe._class_masks[pipe.classes.index(sound)]]] = True
-        d = len(pipe.grid)
-        self._maps = np.zeros((self.window - 1, d), np.float32)
-        self._counts = np.zeros(self.window - 1, np.int64)
-        self._total = np.zeros(d)
-        self._total_bins = 0
-        self.frames = 0
-
-    def push(self, frames: Frames) -> list:
-        """(time_s, DirectionEstimate or None) of each frame: the estimate of its last ``window`` frames."""
-        from acoustic_sim.auditory.percept import map_estimate
-
-        x = frames.spectra
-        valid = self.pipe._valid(x)
-        if self.mask is not None:
-            valid = valid & self.mask
-        maps, n_valid = self.pipe.ssdenet.frame_maps(x, valid, self.pipe.fusion)
-        sums, self._maps = _window_sums(self._maps, maps, self.window)
-        counts, self._counts = _window_sums(self._counts, n_valid, self.window)
-        self._total += maps.sum(axis=0, dtype=np.float64)
-        self._total_bins += int(n_valid.sum())
-        self.frames += len(frames)
-        grid = self.pipe.grid
-        return [(float(t), map_estimate(m.astype(np.float32), grid, int(nb), self.method) if nb else None)
-                for t, m, nb in zip(frames.time_s, sums, np.rint(counts).astype(np.int64))]
-
-    def overall(self):
-        """The estimate from all frames together; None when no bin was ever valid."""
-        from acoustic_sim.auditory.percept import map_estimate
-
-        if not self._total_bins:
-            return None
-        return map_estimate(self._total.astype(np.float32), self.pipe.grid, self._total_bins, self.method)
-
-
-class BaselineTrack:
-    """``AuditoryPipeline.localize(method="music" | "gcc-phat")`` of a recording pushed in chunks.
-
-    Needs only the HRTF (MUSIC's steering vectors, GCC-PHAT's lag calibration) and the grid:
-    no learned model. Keeps the last ``window - 1`` frames' spectra and, for the overall
-    estimate, the sum of the correlation matrices (MUSIC) or of the cross-spectrum (GCC-PHAT).
-    """
-
-    def __init__(self, method: str, hrtf, grid, *, window: int = 25) -> None:
-        from acoustic_sim.auditory.baselines import GccPhat, Music
-
-        if method not in ("music", "gcc-phat"):
-            raise ConfigError(f"unknown baseline method {method!r}; valid: music, gcc-phat")
-        if window < 1:
-            raise ConfigError(f"window must be >= 1, got {window}")
-        self.method = method
-        self.grid = grid
-        self.window = int(window)
-        self.music = Music(hrtf, grid) if method == "music" else None
-        self.gcc = GccPhat(hrtf) if method == "gcc-phat" else None
-        self._tail = np.zeros((0, 2, N_BINS), np.complex64)
-        self._sum = None
-        self.frames = 0
-
-    def _estimate(self, x: np.ndarray):
-        if self.music is not None:
-            return self._music_estimate(self.music.analyze(x))
-        return self._gcc_estimate(self.gcc.analyze(x))
-
-    def _music_estimate(self, r):
-        from acoustic_sim.auditory.percept import map_estimate
-
-        if r.silent:
-            return None
-        return map_estimate(np.asarray(r.spectrum, np.float32), self.grid, len(r.bins), "music")
-
-    @staticmethod
-    def _gcc_estimate(r):
-        from acoustic_sim.auditory.percept import DirectionEstimate
-        from acoustic_sim.frames import sph_to_vec, vec_to_sph
-
-        if r.silent:
-            return None
-        v = sph_to_vec(r.azimuth_deg, 0.0)
-        az, el = vec_to_sph(v)
-        return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el),
-                                 existence=np.zeros(0, np.float32), confidence=1.0, n_bins=0, method="gcc-phat")
-
-    def push(self, frames: Frames) -> list:
-        """(time_s, DirectionEstimate or None) of each frame, from its last ``window`` frames."""
-        x = frames.spectra
-        rows = np.concatenate([self._tail, x])
-        lead = self._tail.shape[0]
-        out = []
-        for j, t in enumerate(frames.time_s):
-            i = lead + j
-            out.append((float(t), self._estimate(rows[max(0, i - self.window + 1) : i + 1])))
-        self._tail = rows[max(0, rows.shape[0] - (self.window - 1)) :].copy() if self.window > 1 else rows[:0].copy()
-        if self.music is not None:
-            xb = x[:, :, self.music.bins].astype(np.complex128)
-            part = np.einsum("kib,kjb->bij", xb, np.conj(xb))
-        else:
-            part = np.sum(x[:, 0].astype(np.complex128) * np.conj(x[:, 1].astype(np.complex128)), axis=0)
-        self._sum = part if self._sum is None else self._sum + part
-        self.frames += len(frames)
-        return out
-
-    def overall(self):
-        """The estimate from all frames together; None for silence (or no frame)."""
-        if self._sum is None:
-            return None
-        if self.music is not None:
-            # In the in-memory path's precision (complex64), summed more precisely.
-            return self._music_estimate(self.music.analyze_correlation((self._sum / self.frames).astype(np.complex64)))
-        return self._gcc_estimate(self.gcc.analyze_cross(self._sum.astype(np.complex64)))
-
-
-class DetectTrack:
-    """:func:`~acoustic_sim.auditory.pipeline.detect_recording` of a recording pushed in chunks.
-
-    Keeps the last 24 frames' mel power and ear volumes (a patch is 25 frames) and the
-    running maximum of each class's probability.
-    """
-
-    def __init__(self, melcnn) -> None:
-        from acoustic_sim.auditory.features import MEL_FRAMES, N_MELS
-
-        self.melcnn = melcnn
-        self.classes = tuple(melcnn.classes)
-        self._n = MEL_FRAMES
-        self._mel = np.zeros((MEL_FRAMES - 1, 2, N_MELS), np.float32)
-        self._vol = np.zeros((0, 2))
-        self._max = None
-        self.frames = 0
-
-    def push(self, frames: Frames) -> tuple[np.ndarray, np.ndarray]:
-        """Times (K,) and fused probabilities float32 (K, C) of the frames (the MelCNN runs
-        once on the chunk: push at most :data:`CHUNK_FRAMES` frames at a time)."""
-        from acoustic_sim.auditory.features import ear_volume, mel_power, normalize_log_mel
-
-        x = frames.spectra
-        k = x.shape[0]
-        if k == 0:
-            return frames.time_s, np.zeros((0, len(self.classes)), np.float32)
-        n = self._n
-        padded = np.concatenate([self._mel, mel_power(x)])  # (n - 1 + K, 2, M)
-        win = np.lib.stride_tricks.sliding_window_view(padded, n, axis=0)  # (K, 2, M, n)
-        patches = normalize_log_mel(win.transpose(0, 1, 3, 2))
-        self._mel = padded[-(n - 1) :].copy()
-        vol = ear_volume(x)  # (K, 2)
-        kernel = np.ones(n) / n
-        lead = self._vol.shape[0]
-        joined = np.concatenate([self._vol, vol])
-        # Mean volume over each patch's frames (frames before the start count as silent): the
-        # entries of np.convolve over the whole recording, from the frames they sum.
-        mean = np.stack([np.convolve(joined[:, e], kernel)[lead : lead + k] for e in range(2)], axis=1)
-        self._vol = joined[-(n - 1) :].copy()
-        b = DETECT_BATCH
-        probs = np.concatenate([self.melcnn.detect(patches[i : i + b], mean[i : i + b]) for i in range(0, k, b)])
-        probs = probs.astype(np.float32)
-        self._max = probs.max(axis=0) if self._max is None else np.maximum(self._max, probs.max(axis=0))
-        self.frames += k
-        return frames.time_s, probs
-
-    def overall(self) -> np.ndarray:
-        """float32 (C,): the largest probability of each class over the frames so far."""
-        if self._max is None:
-            raise ConfigError("no frame was pushed")
-        return self._max
