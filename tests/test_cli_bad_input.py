@@ -31,6 +31,7 @@ def guard(monkeypatch):
     """Make every model, env, benchmark and experiment fail loudly if a case reaches it."""
     from apps import runner
     from acoustic_sim.auditory import melcnn, ssdenet
+    from acoustic_sim.auditory.melcnn import fitting as melcnn_fitting
     from acoustic_sim.auditory.ssdenet import bank as ssdenet_training
     from acoustic_sim.experiments import hrtf_figures
     from apps import eval_tasks as tasks_experiment
@@ -45,6 +46,7 @@ def guard(monkeypatch):
     monkeypatch.setattr(melcnn.MelCNN, "load_or_train", classmethod(stop("MelCNN.load_or_train")))
     monkeypatch.setattr(ssdenet_training, "train_bank", stop("SSDENet training"))
     monkeypatch.setattr(melcnn, "train", stop("MelCNN training"))
+    monkeypatch.setattr(melcnn_fitting, "train", stop("MelCNN training"))  # what load_or_train calls
     monkeypatch.setattr(runner, "make_env", stop("make_env"))
     monkeypatch.setattr(hrtf_figures, "pinna", stop("eval paper's experiments"))
     monkeypatch.setattr(tasks_experiment, "run_tasks", stop("eval tasks' episodes"))

@@ -238,6 +238,7 @@ def test_every_read_asks_for_at_most_a_block(long_wav, reads, kemar):
 def no_models(monkeypatch, tmp_path):
     """An empty model cache, and every way to load or train SSDENet or MelCNN raises."""
     from acoustic_sim.auditory import melcnn, ssdenet
+    from acoustic_sim.auditory.melcnn import fitting as melcnn_fitting
     from acoustic_sim.auditory.ssdenet import bank as ssdenet_training
 
     cache = tmp_path / "cache"
@@ -256,6 +257,7 @@ def no_models(monkeypatch, tmp_path):
         monkeypatch.setattr(melcnn.MelCNN, name, classmethod(stop(f"MelCNN.{name}")))
     monkeypatch.setattr(ssdenet_training, "train_bank", stop("SSDENet training"))
     monkeypatch.setattr(melcnn, "train", stop("MelCNN training"))
+    monkeypatch.setattr(melcnn_fitting, "train", stop("MelCNN training"))  # what load_or_train calls
     monkeypatch.setattr(ssdenet.SSDENetBank, "__init__", stop("SSDENetBank()"))
     monkeypatch.setattr(melcnn.MelCNN, "__init__", stop("MelCNN()"))
     return cache
