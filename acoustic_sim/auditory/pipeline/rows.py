@@ -34,7 +34,8 @@ class SoundRows:
         self.names = list(self.classes)
         self.attended: list[int] = []  # rows localized in every frame
         self._bank_bins = np.asarray(bank_bins)
-        self.band = (bin_frequencies() >= SPECIFICITY_BAND_HZ[0]) & (bin_frequencies() <= SPECIFICITY_BAND_HZ[1])
+        f = bin_frequencies()
+        self.band = (f >= SPECIFICITY_BAND_HZ[0]) & (f <= SPECIFICITY_BAND_HZ[1])
         # (rows, n_bank) bool: each row's characteristic bins among the bank's.
         self.masks = np.zeros((len(self.classes), self._bank_bins.size), bool)
         # (rows, n_band): which of the band's bins are characteristic (all of them for a class without).
