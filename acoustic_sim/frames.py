@@ -197,6 +197,25 @@ def frame_end_sample(k, sample_rate: int = SAMPLE_RATE, frame_rate: float = FRAM
     return out if out.ndim else int(out)
 
 
+
+class FrameEnds:
+    """:func:`frame_end_sample` as a lookup for a stepping clock: the ends are computed 1024
+    frames at a time, which keeps numpy's per-call overhead out of the control step (the
+    coupling and the renderer each hold one)."""
+
+    def __init__(self, sample_rate: int = SAMPLE_RATE, chunk: int = 1024) -> None:
+        self.sample_rate = int(sample_rate)
+        self._chunk = int(chunk)
+        self._first, self._ends = 0, []
+
+    def __call__(self, k: int) -> int:
+        """The sample at which frame ``k`` ends (exclusive)."""
+        i = k - self._first
+        if not 0 <= i < len(self._ends):
+            self._first, i = k, 0
+            self._ends = frame_end_sample(np.arange(k, k + self._chunk), self.sample_rate).tolist()
+        return self._ends[i]
+
 def block_length(k, sample_rate: int = SAMPLE_RATE, frame_rate: float = FRAME_RATE) -> int:
     """Number of samples in control block ``k`` (from the end of frame k-1 to the end of frame k)."""
     return int(frame_end_sample(k, sample_rate, frame_rate) - frame_end_sample(k - 1, sample_rate, frame_rate))

@@ -57,8 +57,6 @@ from acoustic_sim.frames import FRAME_RATE
 from acoustic_sim.loop import HearingLoop, StepHearing
 from acoustic_sim.world import actuation, scenes
 from acoustic_sim.world.coupling import Coupling
-from acoustic_sim.world.egonoise import MotorEgoNoise
-from acoustic_sim.world.view import WorldView
 from tasks.actions import ROBOT_JOINTS, ActionChannel, ActionLayout, action_layout
 from tasks.auditory import PROFILES, TorchThreads, load_hrtf, make_pipeline
 from tasks.env_args import REWARD_MODES, check_arguments, joint_action
@@ -253,18 +251,12 @@ class HearingTaskEnv(EpisodeSounds, gym.Env):
         config = self._scene_config(task_rng)
         model, data, info = scenes.load_scene(self.scene_name, config=config)
         self._setup_world(model, data, task_rng)
-        view = WorldView(model, data)
-        ego = MotorEgoNoise.from_view(view, sample_rate=self.ears.sample_rate)
         lo, hi = self.background_db_range
         self.background_db = float(task_rng.uniform(lo, hi)) if hi > lo else float(lo)
         room = dataclasses.replace(info.room, background_db_spl=self.background_db)
-        from acoustic_sim.acoustics.renderer import BinauralRenderer
-
-        renderer = BinauralRenderer(self.ears, room, rng=np.random.default_rng(render_ss), sample_rate=self.ears.sample_rate,
-                                    background=True, late=True, ego_noise=ego)
-        self.coupling = Coupling(model, data, renderer, rng=np.random.default_rng(events_ss),
-                                 events_config=self._events_config())
-        self.coupling.scene_info = info
+        self.coupling = Coupling.wired(model, data, info, ears=self.ears, render_rng=np.random.default_rng(render_ss),
+                                       events_rng=np.random.default_rng(events_ss), room=room,
+                                       events_config=self._events_config())
         self.model, self.data, self.view = model, data, self.coupling.view
         self.microphone = Microphone(rng=np.random.default_rng(mic_ss), sample_rate=self.ears.sample_rate)
         self.hearing = HearingLoop(self.coupling, self.microphone, self.pipeline, soundscape=Soundscape(self.coupling),

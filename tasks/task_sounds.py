@@ -33,26 +33,10 @@ def outside_placement(coupling: Coupling, point_room, level_db: float, margin: f
     body's transmission loss and minus the spreading ``20 log10(max(d, 1 m))`` from the
     source to that point.
 
-    Why the line of sight (since 2026-12-04, session 21): of the paths through the body the
-    straight one from the source to the head arrives first, and the first wavefront gives a
-    sound its direction, so a source beside the cabin is heard from its own direction. Until
-    then a source played from the point inside the walls nearest to it, which brought one
-    2-6 m beside the cabin and 0.5-1 m ahead of the head in through the window next to it,
-    19-35 deg from straight ahead, where the line of sight gives 68-86 deg (its path that
-    way is 0.2-0.5 m, 0.7-1.5 ms, longer). A task sound is placed when it is scheduled
-    (the head's position then); the car horn, the coupling's emitter, follows the head. The
-    change moved ReverseAlarm's beepers on the left onto the front's mirror image from the
-    then policy's listening pose (45 deg right), so the policy changed with it: it now
-    listens 22 deg right and accepts a window of lateral angles
-    (:class:`policies.scripted.ScriptedReverseAlarm`; measurements: docs/notes/alarm_policy.md). Fast models
-    under this law with the old policy, seeds 1000-1099 (89 with no false release under the
-    old law): 87 with 2 false releases (test seeds 100-119: 17/20 with 2); 30 deg right 85
-    with 2; 25 deg right 78 with none; 20 deg right 54; 25 deg right without the mirror
-    image 14 (the alarm near the median plane is mostly placed behind). The 16-bin fast bank
-    of then with the lateral rule: 10 of 20 on the test seeds, 73 on 1000-1099: near the
-    median plane its lateral angles scatter, so the tests' bank became the jittered 32-bin
-    one (:data:`~acoustic_sim.auditory.ssdenet.recipes.FAST`).
-    ParkingBrake has no outside sounds (100-119 unchanged).
+    Why the line of sight: the first wavefront gives a sound its direction, and of the paths
+    through the body the straight one arrives first. A task sound is placed when it is
+    scheduled (the head's position then); the car horn, the coupling's emitter, follows the
+    head. What the change did to ReverseAlarm and its policy: docs/notes/outside_sounds.md.
 
     Parameters
     ----------

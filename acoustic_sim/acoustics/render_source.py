@@ -97,6 +97,16 @@ class Source:
         return out * gain
 
 
+def mono_signal(signal, what: str) -> np.ndarray:
+    """``signal`` as a float64 array, checked to be mono, non-empty and finite; ``what`` names
+    it in the :class:`ConfigError` otherwise. Every path by which a signal enters the world
+    (a renderer source, a scheduled or an event sound) checks it here."""
+    x = np.asarray(signal, dtype=float)
+    if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
+        raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array, got shape {x.shape}")
+    return x
+
+
 def checked_signal(name: str, signal, level_db: float) -> np.ndarray:
     """A source's signal as float64, checked with its level.
 
@@ -118,9 +128,7 @@ def checked_signal(name: str, signal, level_db: float) -> np.ndarray:
     ConfigError
         A signal that is not a non-empty finite 1-D array, or a level out of range.
     """
-    sig = np.asarray(signal, dtype=float)
-    if sig.ndim != 1 or sig.size == 0 or not np.all(np.isfinite(sig)):
-        raise ConfigError(f"source {name!r}: signal must be a non-empty finite 1-D array, got shape {sig.shape}")
+    sig = mono_signal(signal, f"source {name!r}")
     if not np.isfinite(level_db) or not -20 <= level_db <= 160:
         raise ConfigError(f"source {name!r}: level_db must be -20..160 dB SPL at 1 m, got {level_db}")
     return sig

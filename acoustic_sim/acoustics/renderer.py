@@ -33,7 +33,7 @@ from acoustic_sim.acoustics.late_bus import BUS_START, TAIL_SPLICE, LateBus
 from acoustic_sim.acoustics.render_source import EgoNoise, Source, checked_signal
 from acoustic_sim.acoustics.room import Room
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import SAMPLE_RATE, frame_end_sample
+from acoustic_sim.frames import SAMPLE_RATE, FrameEnds
 
 __all__ = ["BUS_START", "HISTORY", "TAIL_SPLICE", "BinauralRenderer", "EgoNoise", "Source", "crossfade_ramp"]
 
@@ -128,8 +128,8 @@ class BinauralRenderer:
         self.sample = 0  # the master clock: next sample to render
         self.frame = 0  # control blocks rendered
         self._frame_start = 0  # the current control block's first sample
-        self._frame_end = int(frame_end_sample(1, self.sample_rate))  # and its end
-        self._ends = (0, [])  # frame ends from a first frame on, fetched in batches
+        self._ends = FrameEnds(self.sample_rate)  # the clock's frame ends
+        self._frame_end = self._ends(1)  # the current control block's end
         self.blocks = 0  # render_block calls
         self.sources: dict[str, Source] = {}
         self._early = EarlyStream(self.max_block)
@@ -282,7 +282,7 @@ class BinauralRenderer:
             left -= m
             if self.sample == self._frame_end:
                 self.frame += 1
-                self._frame_start, self._frame_end = self._frame_end, self._end_of_frame(self.frame + 1)
+                self._frame_start, self._frame_end = self._frame_end, self._ends(self.frame + 1)
         out = pieces[0] if len(pieces) == 1 else np.concatenate(pieces, axis=1)
         if self._background is not None:
             out += self._background(n)
@@ -293,13 +293,6 @@ class BinauralRenderer:
             out += ego
         self.blocks += 1
         return out
-
-    def _end_of_frame(self, k: int) -> int:
-        """:func:`frame_end_sample` of frame ``k``, computed 1024 frames at a time."""
-        first, ends = self._ends
-        if not first <= k < first + len(ends):
-            first, ends = self._ends = (k, frame_end_sample(np.arange(k, k + 1024), self.sample_rate).tolist())
-        return ends[k - first]
 
     def render(self, seconds: float) -> np.ndarray:
         """Render audio in control blocks.

@@ -67,6 +67,27 @@ def map_estimate(existence: np.ndarray, grid, n_bins: int, method: str) -> Direc
     )
 
 
+def music_estimate(result, grid) -> DirectionEstimate | None:
+    """A MUSIC analysis (:class:`~acoustic_sim.auditory.baselines.Music`) as a DirectionEstimate
+    over ``grid``; None when it was silent."""
+    if result.silent:
+        return None
+    return map_estimate(np.asarray(result.spectrum, np.float32), grid, len(result.bins), "music")
+
+
+def gcc_estimate(result) -> DirectionEstimate | None:
+    """A GCC-PHAT analysis (an azimuth in the horizontal plane) as a DirectionEstimate; None
+    when it was silent."""
+    if result.silent:
+        return None
+    from acoustic_sim.frames import sph_to_vec, vec_to_sph
+
+    v = sph_to_vec(result.azimuth_deg, 0.0)
+    az, el = vec_to_sph(v)
+    return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el), existence=np.zeros(0, np.float32),
+                             confidence=1.0, n_bins=0, method="gcc-phat")
+
+
 @dataclass(frozen=True, kw_only=True)
 class Percept:
     """The pipeline's output for one ear frame.

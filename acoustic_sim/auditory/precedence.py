@@ -1,92 +1,30 @@
 """The precedence effect for the streaming pipeline: spectra of the first wavefront.
 
-In a small reverberant space the ear frames (2048 samples, 46 ms) hold a sound's direct
-path together with its reflections, and in the car cabin the reflections win: the side
-window 0.45 m from the left ear and the floor under the parking brake's pawl return
-almost as much energy as the direct path, within 1-2 ms of it. The frame's interaural
-cues are then those of the mixture (measured from the cabin's impulse response: the
-pawl's ILD is -15 to -21 dB in its direct path at 2-8 kHz, -1 to -3 dB over the whole
-response), and SSDENet, trained on free-field HRTFs, places the sound near the median
-plane or on the wrong side. Listeners localize such sounds by their first wavefront
-(the precedence effect: a reflection within about 1-40 ms does not pull the perceived
-direction).
+In a small reverberant space an ear frame (2048 samples, 46 ms) holds a sound's direct path
+together with its reflections, and in the car cabin the reflections win (the side window
+and the floor return almost as much energy as the direct path, within 1-2 ms of it), so the
+frame's interaural cues are the mixture's and SSDENet, trained on free-field HRTFs, places
+the sound near the median plane or on the wrong side. Listeners localize such sounds by
+their first wavefront; :class:`FirstWavefront` does that on the sample clock.
 
-:class:`FirstWavefront` does that on the sample clock: it finds onsets in the ear signals
-(the energy of 0.5 ms blocks, high-passed at 1 kHz, rising ``ratio`` times above the
-median of the preceding 1-10 ms) and returns the spectrum of a short window at each onset
-(0.25 ms before to 1.5 ms after it, Tukey-tapered, zero-padded to the front end's 2048
-points, so its bins are the front end's). That window holds the direct path of both ears
-and ends before most first reflections arrive; the pipeline computes the ILD/IPD features
-from it in place of the frame's, for the frame the window completes in, at the bins above
-:attr:`FirstWavefront.min_hz` (two periods in the window, 1.1 kHz; below, the window's
-spectrum is its taper's and the frame's features are kept). Frames without an onset give
-no direction evidence.
+- **Onsets**: the energy of 0.5 ms blocks, high-passed at 1 kHz, rising ``ratio`` times
+  above the median of the preceding 1-10 ms. At each onset it returns the spectrum of a
+  window from 0.25 ms before to 1.5 ms after it (Tukey-tapered, zero-padded to the front
+  end's 2048 points, so its bins are the front end's); the pipeline computes the ILD/IPD
+  features from it in place of the frame's, at the bins above :attr:`FirstWavefront.min_hz`
+  (two periods in the window, 1.1 kHz). Frames without an onset give no direction evidence.
+- **Which sound an onset is** (``added_ms``): the energy the onset *added*, the power
+  spectrum of the ``added_ms`` after it minus that of the ``added_ms`` before it
+  (:meth:`FirstWavefront.take_added`); the sounds already playing cancel.
+- **A rising onset** (``align_lag_ms``, ``rise_ratio``; off by default): on a ramp the far
+  ear, later by the interaural delay, is further down the ramp, which overstates the ILD;
+  the far ear's magnitude can be taken from a window delayed by the interaural lag.
+- **More looks at a rising onset** (``windows``, ``hop_ms``): a rising onset can get several
+  windows, ``hop_ms`` apart, whose maps the pipeline averages per bin; a click keeps one.
 
-Measured on 30 ParkingBrake episodes (kemar, a steady pull, 46 pawl clicks and 134 relay
-clicks on their own): SSDENet on the frames' features (with the power-ratio gate, the
-previous design) placed 72 % of the pawl's clicks and 10 % of the relay's on the right
-(paper bank); on the first-wavefront spectra 98 % and 0 % (fast bank: 89 % and 1 %).
-The scripted policies over 30 episodes (seeds 100-129, kemar), frames' features with the
-power-ratio gate -> first wavefront: ParkingBrake success 0.40 -> 0.87 (paper models;
-false releases 0.20 -> 0.10) and 0.53 -> 0.67 (fast); ReverseAlarm 0.37 -> 0.70 (paper)
-and 0.47 -> 0.60 (fast); CallResponse (fast, 20 episodes) stays at 1.0.
-
-Which sound an onset is (``added_ms``): the 1.75 ms window spreads a tone over a
-kilohertz (its spectrum is the taper's transform around the tone), and it holds whatever
-else is sounding. The pipeline's attribution rule (``specificity``) asks instead where the
-energy that the onset *added* lies: the power spectrum of the ``added_ms`` after the
-onset minus that of the ``added_ms`` before it (Hann-windowed, clipped at 0, both ears
-summed; :meth:`FirstWavefront.take_added`). Ten milliseconds hold eleven periods of the
-reverse alarm's 1.1 kHz, so its added energy stays in its bins, and the sounds already
-playing cancel. The onset's wavefront is handed over as before; its added energy once that
-segment is complete (at most a frame later).
-
-A rising onset (``align_lag_ms``, ``rise_ratio``): the reverse alarm's beeps ramp up over
-2-8 ms, and the detector fires early in the ramp, where the amplitude still grows several
-times over the window. The far ear hears the same ramp up to 0.7 ms later (the interaural
-time difference), so within one window it is further down the ramp, and the window's ILD
-overstates the near ear: the sound is pushed toward the interaural axis. Measured on the
-alarm's first beep of ReverseAlarm seed 103 (paper models, kemar; the alarm 45 deg left of
-the turned head): ILD 1.47 at 1184 Hz and 2.10 at 3510 Hz (natural log of the amplitude
-ratio), placed at 87 deg azimuth, -10 deg elevation (lateral 80 deg); the level difference
-of the ears aligned on their interaural delay (the first version below): 0.92 and 1.19, an
-accepted direction. When the window's energy grows (a rising onset: its second half holds
-at least ``rise_ratio`` times the first half's, both ears, high-passed, :meth:`FirstWavefront.rising`),
-the far ear's magnitude spectrum is therefore taken from
-a window delayed by the interaural lag: the lag (up to ``align_lag_ms``) at which the far
-ear's log envelope (Hilbert, high-passed; the far ear is the one with less energy in the
-window) differs most steadily from the near ear's over the window. The phase (and so the
-IPD) stays that of the common window, and the near ear's window is unchanged. The rise
-test keeps the clicks out: a click's energy falls over the window (the ratchet's in
-ParkingBrake seed 114: second half 0.6-0.9 times the first; the relay's there 4-9; the
-alarm's onsets in ReverseAlarm seed 103: 18 and 35), and the lag criterion fails on them
-in the cabin (a ratchet click on the right got the lag of a source on the left).
-
-The streaming pipeline does not align (``align_lag_ms=None``, the default): over the
-tasks the effect is a few episodes either way. Measured with the scripted policies
-(kemar), the common window -> aligned: paper models, ReverseAlarm seeds 100-129, 24/30 ->
-25/30 (103, 114 and 120 on time; 113 and 123 now late, 1.03 and 1.42 s), fast models,
-seeds 100-119, 18/20 -> 17/20 (117 now late). A first version (the left ear always
-the reference, lags both ways) gave, paper models, ReverseAlarm seeds 100-159, 48/60 ->
-53/60 with one false release (155: the other vehicle's beeper placed at 138 deg azimuth,
-60 deg up, whose front-back mirror image the policy accepts), ParkingBrake seeds 100-159
-54/60 -> 54/60; fast models, ReverseAlarm 18/20 -> 16/20 with one false release. Without
-the rise test, ParkingBrake (paper, 100-129) 26/30 -> 25/30; with the far ear's phase
-also taken from the shifted window (the lag's phase put back per bin), 24/30 with two
-false releases.
-
-More looks at a rising onset (``windows``, ``hop_ms``): each beep of the reverse alarm is
-one onset, so one window, one direction sample from two or three bins, and the next beep
-comes 0.8-1.1 s later. While a sound ramps up, the direct path still leads its reflections
-for some milliseconds (a reflection 1-2 ms late is further down the ramp), so a rising
-onset gets ``windows`` windows, ``hop_ms`` apart, whose existence maps the pipeline
-averages per bin (``AuditoryPipeline(onset_windows=)``); a click (falling energy) keeps one
-window, as does every onset with ``windows=1`` (the default). The cabin tasks take three,
-1 ms apart (:attr:`tasks.cabin.CabinLeverTask.onset_windows`, which has the measurements:
-ReverseAlarm, paper models, 74/90 -> 80/90 episodes).
-
-Hand-written because no library in the project detects onsets on a streaming sample
-clock (scipy has the filters, which are used).
+The measurements behind each of these (ParkingBrake and ReverseAlarm episodes, paper and
+fast models) are in docs/notes/precedence.md. Hand-written because no library in the
+project detects onsets on a streaming sample clock (scipy has the filters, which are used).
 """
 
 from __future__ import annotations

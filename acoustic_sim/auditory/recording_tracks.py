@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from acoustic_sim.auditory.frontend import N_BINS, Frames
+from acoustic_sim.auditory.percept import gcc_estimate, music_estimate
 from acoustic_sim.errors import ConfigError
 
 DETECT_BATCH = 16
@@ -128,27 +129,8 @@ class BaselineTrack:
 
     def _estimate(self, x: np.ndarray):
         if self.music is not None:
-            return self._music_estimate(self.music.analyze(x))
-        return self._gcc_estimate(self.gcc.analyze(x))
-
-    def _music_estimate(self, r):
-        from acoustic_sim.auditory.percept import map_estimate
-
-        if r.silent:
-            return None
-        return map_estimate(np.asarray(r.spectrum, np.float32), self.grid, len(r.bins), "music")
-
-    @staticmethod
-    def _gcc_estimate(r):
-        from acoustic_sim.auditory.percept import DirectionEstimate
-        from acoustic_sim.frames import sph_to_vec, vec_to_sph
-
-        if r.silent:
-            return None
-        v = sph_to_vec(r.azimuth_deg, 0.0)
-        az, el = vec_to_sph(v)
-        return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el),
-                                 existence=np.zeros(0, np.float32), confidence=1.0, n_bins=0, method="gcc-phat")
+            return music_estimate(self.music.analyze(x), self.grid)
+        return gcc_estimate(self.gcc.analyze(x))
 
     def push(self, frames: Frames) -> list:
         """(time_s, DirectionEstimate or None) of each frame, from its last ``window`` frames."""
@@ -175,8 +157,8 @@ class BaselineTrack:
             return None
         if self.music is not None:
             # In the in-memory path's precision (complex64), summed more precisely.
-            return self._music_estimate(self.music.analyze_correlation((self._sum / self.frames).astype(np.complex64)))
-        return self._gcc_estimate(self.gcc.analyze_cross(self._sum.astype(np.complex64)))
+            return music_estimate(self.music.analyze_correlation((self._sum / self.frames).astype(np.complex64)), self.grid)
+        return gcc_estimate(self.gcc.analyze_cross(self._sum.astype(np.complex64)))
 
 
 class DetectTrack:

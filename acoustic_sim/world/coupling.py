@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, frame_end_sample
+from acoustic_sim.frames import FRAME_RATE, SAMPLE_RATE, FrameEnds, frame_end_sample
 from acoustic_sim.world import actuation, names
 from acoustic_sim.world.egonoise import EgoNoiseConfig, MotorEgoNoise
 from acoustic_sim.world.emitter_rings import EmitterRing, release_samples
@@ -147,10 +147,8 @@ class Coupling:
         self._gear_trace = [0.0] * self.n_substeps  # mechanism angles (rad) after each physics step
         self._brake_trace = [0.0] * self.n_substeps
         self._pawl_trace = [0.0] * self.n_substeps
-        self.head_position = np.zeros(3)
-        """Head centre (m, room frame) after the last step."""
-        self.head_rotation = np.eye(3)
-        """Head orientation (head to room) after the last step."""
+        self.head_position, self.head_rotation = np.zeros(3), np.eye(3)
+        """Head centre (m, room frame) and orientation (head to room) after the last step."""
         self._sent_head: tuple[np.ndarray, np.ndarray] | None = None
         self.scene_info = None
         """The :class:`~acoustic_sim.world.scenes.SceneInfo` when built by :meth:`from_scene`."""
@@ -159,18 +157,9 @@ class Coupling:
         self.reset_events()
 
     @classmethod
-    def from_scene(
-        cls,
-        name: str,
-        *,
-        rng: np.random.Generator,
-        hrtf="kemar",
-        scene_config=None,
-        ego_noise: EgoNoiseConfig | bool | None = True,
-        background: bool = True,
-        late: bool = True,
-        events_config: EventsConfig | None = None,
-    ) -> Coupling:
+    def from_scene(cls, name: str, *, rng: np.random.Generator, hrtf="kemar", scene_config=None,
+                   ego_noise: EgoNoiseConfig | bool | None = True, background: bool = True, late: bool = True,
+                   events_config: EventsConfig | None = None) -> Coupling:
         """Load a composed scene and wire it to a renderer of its own acoustic room.
 
         Parameters
@@ -193,23 +182,36 @@ class Coupling:
         Returns
         -------
         Coupling
-            With ``model``, ``data`` (via :attr:`view`), ``renderer`` and :attr:`scene_info`.
+            With ``model``, ``data``, ``renderer`` and :attr:`scene_info` (:meth:`wired`).
         """
         from acoustic_sim.acoustics.hrtf import HRTF
-        from acoustic_sim.acoustics.renderer import BinauralRenderer
         from acoustic_sim.world.scenes import load_scene
 
         if not isinstance(rng, np.random.Generator):
             raise ConfigError(f"Coupling.from_scene needs a numpy.random.Generator, got {type(rng).__name__}")
         model, data, info = load_scene(name, config=scene_config)
         ears = hrtf if isinstance(hrtf, HRTF) else HRTF.load(hrtf)
+        render_rng, events_rng = rng.spawn(2)
+        return cls.wired(model, data, info, ears=ears, render_rng=render_rng, events_rng=events_rng, ego_noise=ego_noise,
+                         background=background, late=late, events_config=events_config)
+
+    @classmethod
+    def wired(cls, model, data, info, *, ears, render_rng: np.random.Generator, events_rng: np.random.Generator,
+              room=None, ego_noise: EgoNoiseConfig | bool | None = True, background: bool = True, late: bool = True,
+              events_config: EventsConfig | None = None) -> Coupling:
+        """A loaded scene (``load_scene``'s model, data and info) wired to a renderer of its
+        acoustic room: ``room`` (default ``info.room``; a task changes its background level),
+        ``ears`` (an HRTF), the renderer drawing from ``render_rng`` and the events from
+        ``events_rng``; the other arguments as in :meth:`from_scene`. The env's reset and
+        :meth:`from_scene` both build their world here."""
+        from acoustic_sim.acoustics.renderer import BinauralRenderer
+
         ego = None
         if ego_noise is not None and ego_noise is not False:
             config = ego_noise if isinstance(ego_noise, EgoNoiseConfig) else None
             ego = MotorEgoNoise.from_view(WorldView(model, data), config, sample_rate=ears.sample_rate)
-        render_rng, events_rng = rng.spawn(2)
-        renderer = BinauralRenderer(ears, info.room, rng=render_rng, sample_rate=ears.sample_rate, background=background,
-                                    late=late, ego_noise=ego)
+        renderer = BinauralRenderer(ears, info.room if room is None else room, rng=render_rng, sample_rate=ears.sample_rate,
+                                    background=background, late=late, ego_noise=ego)
         coupling = cls(model, data, renderer, rng=events_rng, events_config=events_config)
         coupling.scene_info = info
         return coupling
@@ -228,13 +230,9 @@ class Coupling:
     @frame_index.setter
     def frame_index(self, k: int) -> None:
         self._frame_index = int(k)
-        # frames.frame_end_sample is the one definition of the clock; evaluating it for a
-        # chunk of frames at a time keeps its numpy overhead out of the control step.
-        first = getattr(self, "_ends_first", None)
-        if first is None or not first <= self._frame_index < first + len(self._ends):
-            self._ends_first = self._frame_index
-            self._ends = [int(v) for v in frame_end_sample(np.arange(self._frame_index, self._frame_index + 4096), self.sample_rate)]
-        self.block_start = self._ends[self._frame_index - self._ends_first]
+        if getattr(self, "_ends", None) is None:
+            self._ends = FrameEnds(self.sample_rate)
+        self.block_start = self._ends(self._frame_index)
         """First sample of the next block on the project clock."""
 
     @property

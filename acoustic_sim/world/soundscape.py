@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from acoustic_sim.acoustics.render_source import mono_signal
 from acoustic_sim.acoustics.sounds import SOUND_CLASSES
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import frame_end_sample, vec_to_sph
@@ -54,13 +55,6 @@ FRAMES = ("room", "world")
 SOURCE_PREFIX = "task/"
 """Renderer source names of scheduled sounds start with this (world emitters' names never do;
 the sounds are a task's, whoever schedules them)."""
-
-
-def _checked_signal(signal, what: str) -> np.ndarray:
-    x = np.asarray(signal, dtype=float)
-    if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
-        raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array (unit RMS), got shape {x.shape}")
-    return x
 
 
 @dataclasses.dataclass
@@ -194,7 +188,7 @@ class Soundscape:
         if label not in SOUND_CLASSES:
             raise ConfigError(f"{what}: unknown sound class {label!r}; valid: {', '.join(SOUND_CLASSES)}")
         later = signal if callable(signal) else None
-        x = None if later is not None else _checked_signal(signal, what)
+        x = None if later is not None else mono_signal(signal, what)
         if not (isinstance(level_db, (int, float, np.floating, np.integer)) and np.isfinite(level_db) and -20.0 <= level_db <= 160.0):
             raise ConfigError(f"{what}: level_db must be -20..160 dB SPL at 1 m, got {level_db!r}")
         if not (isinstance(t, (int, float, np.floating, np.integer)) and np.isfinite(t)):
@@ -261,7 +255,7 @@ class Soundscape:
         for s in self.sounds:
             if not s.added and s.start < b1:
                 if s.signal is None:
-                    s.signal = _checked_signal(s.later(), f"schedule_sound({s.name[len(SOURCE_PREFIX):]!r})")
+                    s.signal = mono_signal(s.later(), f"schedule_sound({s.name[len(SOURCE_PREFIX):]!r})")
                 r.add_source(s.name, s.signal, s.position, level_db=s.level_db, start=max(s.start, b0))
                 s.added = True
                 self._active.append({"source": s.name, "label": s.label, "start": s.start, "end": s.end, "position": s.position})

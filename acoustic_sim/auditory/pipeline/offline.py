@@ -12,10 +12,10 @@ import numpy as np
 from acoustic_sim.auditory.baselines import GccPhat, Music
 from acoustic_sim.auditory.features import MEL_FRAMES, ear_volume, log_mel_patches
 from acoustic_sim.auditory.frontend import N_BINS, analyze
-from acoustic_sim.auditory.percept import DirectionEstimate
+from acoustic_sim.auditory.percept import gcc_estimate, music_estimate
 from acoustic_sim.auditory.percept import map_estimate as _estimate
 from acoustic_sim.errors import ConfigError
-from acoustic_sim.frames import SAMPLE_RATE, sph_to_vec, vec_to_sph
+from acoustic_sim.frames import SAMPLE_RATE
 
 METHODS = ("ssdenet", "music", "gcc-phat")
 """Localization methods of :meth:`AuditoryPipeline.localize <acoustic_sim.auditory.pipeline.AuditoryPipeline.localize>`."""
@@ -61,24 +61,6 @@ class Baselines:
             self._gcc = GccPhat(self.hrtf)
         gcc = self._gcc
         return lambda x: gcc_estimate(gcc.analyze(x))
-
-
-def music_estimate(result, grid) -> DirectionEstimate | None:
-    """A MUSIC analysis as a DirectionEstimate over ``grid`` (None when it was silent)."""
-    if result.silent:
-        return None
-    return _estimate(np.asarray(result.spectrum, np.float32), grid, len(result.bins), "music")
-
-
-def gcc_estimate(result) -> DirectionEstimate | None:
-    """A GCC-PHAT analysis (an azimuth in the horizontal plane) as a DirectionEstimate (None
-    when it was silent)."""
-    if result.silent:
-        return None
-    v = sph_to_vec(result.azimuth_deg, 0.0)
-    az, el = vec_to_sph(v)
-    return DirectionEstimate(vector=v, azimuth_deg=float(az), elevation_deg=float(el), existence=np.zeros(0, np.float32),
-                             confidence=1.0, n_bins=0, method="gcc-phat")
 
 
 def localize_recording(pipe, audio, *, method: str = "ssdenet", sound: str | None = None, window: int = MEL_FRAMES):

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from acoustic_sim.acoustics import sounds
+from acoustic_sim.acoustics.render_source import mono_signal
 from acoustic_sim.errors import ConfigError
 from acoustic_sim.frames import SAMPLE_RATE
 from acoustic_sim.world.events.crossings import GearshiftTracker, RatchetTracker
@@ -137,10 +138,7 @@ class SoundEvents:
     def _signal(self, signal, what: str) -> np.ndarray | None:
         if signal is None:
             return None
-        x = np.asarray(signal, dtype=float)
-        if x.ndim != 1 or x.size == 0 or not np.all(np.isfinite(x)):
-            raise ConfigError(f"{what}: signal must be a non-empty finite 1-D array (unit RMS), got shape {x.shape}")
-        return x
+        return mono_signal(signal, what)
 
     def schedule_call(self, t: float | None = None, *, signal=None) -> int:
         """The person calls out at time ``t`` (s, project clock; default: the next block).
